@@ -1,0 +1,3 @@
+"""coffeebot: the software of an indoor coffee-delivery robot."""
+
+__version__ = "0.1.0"
