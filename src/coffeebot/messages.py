@@ -1,0 +1,163 @@
+"""Every message that crosses the board, and the topics that carry them.
+
+This file is the contract between modules: a module may only publish or read a topic that is
+declared here, and only with the topic's model. Units are in the field names (mm, mm/s, deg,
+s). Poses are in the floor plan's frame: x, y in mm, heading in degrees counter-clockwise
+from +x. Robot-frame quantities use x forward, y left, origin at the body centre.
+"""
+
+from __future__ import annotations
+
+from enum import StrEnum
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from coffeebot.board.topic import Delivery, Topic
+
+
+class Message(BaseModel):
+    """Base of every board message: immutable, no unknown fields."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+
+# --- health -------------------------------------------------------------------------------
+
+
+class HealthStatus(StrEnum):
+    STARTING = "starting"
+    RUNNING = "running"
+    DEGRADED = "degraded"
+    RESTARTING = "restarting"
+    FAILED = "failed"
+    STOPPED = "stopped"
+
+
+class Health(Message):
+    """Health of one module or one component inside it (a sensor, a port)."""
+
+    module: str
+    component: str | None = None
+    status: HealthStatus
+    restarts: int = 0
+    detail: str = ""
+
+
+# --- sensors ------------------------------------------------------------------------------
+
+
+class ReadingStatus(StrEnum):
+    """Why a time-of-flight reading is or is not a distance (VL53L1X range status, typed)."""
+
+    VALID = "valid"
+    SIGMA_FAIL = "sigma_fail"
+    SIGNAL_FAIL = "signal_fail"
+    OUT_OF_BOUNDS = "out_of_bounds"
+    WRAP_AROUND = "wrap_around"
+    HARDWARE_FAIL = "hardware_fail"
+    NO_TARGET = "no_target"
+    NOT_READY = "not_ready"
+    BUS_ERROR = "bus_error"
+    OTHER = "other"
+
+
+class RangeReading(Message):
+    sensor: int = Field(ge=0, le=7)
+    status: ReadingStatus
+    distance_mm: int | None = None
+    signal_rate_mcps: float | None = None
+    healthy: bool = True
+
+
+class RangeScan(Message):
+    """One cycle over every configured ToF sensor."""
+
+    cycle_start_s: float
+    cycle_time_s: float
+    readings: list[RangeReading]
+
+
+class AnchorRange(Message):
+    anchor_id: str
+    x_mm: float
+    y_mm: float
+    z_mm: float
+    distance_mm: float
+    quality: int
+
+
+class UwbFix(Message):
+    """A DWM1001 position estimate in the anchors' frame (which the floor plan shares)."""
+
+    x_mm: float
+    y_mm: float
+    z_mm: float
+    quality: int = Field(ge=0, le=100)
+    anchors: list[AnchorRange] = []
+
+
+class Odometry(Message):
+    """Motor-controller telemetry: cumulative encoder ticks and the gyro's z rate."""
+
+    controller_time_ms: int
+    left_ticks: int
+    right_ticks: int
+    gyro_z_dps: float
+    left_mm_s: float
+    right_mm_s: float
+    watchdog_tripped: bool = False
+
+
+class MotorCommand(Message):
+    """Wheel speeds for the motor controller. Only the motion module publishes this."""
+
+    left_mm_s: float
+    right_mm_s: float
+    reason: str = ""
+
+
+# --- operator -----------------------------------------------------------------------------
+
+
+class EStop(Message):
+    engaged: bool
+    source: str
+    reason: str = ""
+
+
+class SafetyState(StrEnum):
+    STOP = "stop"
+    SLOW = "slow"
+    GO = "go"
+
+
+class CollisionStatus(Message):
+    """The collision module's verdict for one scan."""
+
+    state: SafetyState
+    scan_seq: int
+    face: Literal["front", "left", "right", "rear"] | None = None
+    sensor: int | None = None
+    distance_mm: int | None = None
+    reason: str = ""
+    speed_limit_mm_s: float = 0.0
+
+
+HEALTH = Topic("system/health", Health, Delivery.RELIABLE, queue_size=1024)
+RANGE_SCAN = Topic("tof/scan", RangeScan, Delivery.LATEST)
+UWB_FIX = Topic("uwb/fix", UwbFix, Delivery.LATEST)
+ODOMETRY = Topic("motor/odometry", Odometry, Delivery.RELIABLE, queue_size=512)
+MOTOR_COMMAND = Topic("motor/command", MotorCommand, Delivery.LATEST)
+ESTOP = Topic("operator/estop", EStop, Delivery.RELIABLE)
+COLLISION = Topic("safety/collision", CollisionStatus, Delivery.LATEST)
+
+ALL_TOPICS: tuple[Topic, ...] = (
+    HEALTH,
+    RANGE_SCAN,
+    UWB_FIX,
+    ODOMETRY,
+    MOTOR_COMMAND,
+    ESTOP,
+    COLLISION,
+)
