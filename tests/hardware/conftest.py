@@ -2,11 +2,16 @@
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable, Iterator
 
 import pytest
 
+from coffeebot.board import Board
+from coffeebot.clock import Clock
 from coffeebot.hardware.serial_port import SerialPort, open_port
+from coffeebot.modules.base import Module, ModuleBoard, ModuleContext
+from coffeebot.sim.clock import SteppedClock
 from coffeebot.sim.dwm1001 import SimDwm1001
 from coffeebot.sim.motor_controller import SimMotorController
 
@@ -37,3 +42,18 @@ def open_sim_port() -> Iterator[Callable[[str], SerialPort]]:
     yield _open
     for port in ports:
         port.close()
+
+
+@pytest.fixture
+def stepped_clock() -> SteppedClock:
+    return SteppedClock()
+
+
+@pytest.fixture
+def context_for() -> Callable[[Board, Module, Clock], ModuleContext]:
+    """What the daemon hands a module, without the daemon."""
+
+    def _make(board: Board, module: Module, clock: Clock) -> ModuleContext:
+        return ModuleContext(ModuleBoard(board, module), clock, logging.getLogger(module.name))
+
+    return _make

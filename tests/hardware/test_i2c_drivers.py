@@ -139,9 +139,16 @@ def test_uncleared_interrupt_keeps_the_old_sample(hw: SimTofHardware, fake_time:
 
 @pytest.mark.parametrize(
     ("raw", "status"),
-    [(9, ReadingStatus.VALID), (4, ReadingStatus.SIGNAL_FAIL), (6, ReadingStatus.SIGMA_FAIL),
-     (7, ReadingStatus.WRAP_AROUND), (3, ReadingStatus.HARDWARE_FAIL),
-     (5, ReadingStatus.OUT_OF_BOUNDS), (13, ReadingStatus.OTHER), (0x49, ReadingStatus.VALID)],
+    [
+        (9, ReadingStatus.VALID),
+        (4, ReadingStatus.SIGNAL_FAIL),
+        (6, ReadingStatus.SIGMA_FAIL),
+        (7, ReadingStatus.WRAP_AROUND),
+        (3, ReadingStatus.HARDWARE_FAIL),
+        (5, ReadingStatus.OUT_OF_BOUNDS),
+        (13, ReadingStatus.OTHER),
+        (0x49, ReadingStatus.VALID),
+    ],
 )
 def test_range_status_is_typed(raw: int, status: ReadingStatus) -> None:
     assert reading_status(raw) is status

@@ -22,6 +22,8 @@ class I2CBus(Protocol):
 
     def read_byte(self, i2c_addr: int) -> int: ...
 
+    def close(self) -> None: ...
+
 
 def open_i2c_bus(bus: int) -> I2CBus:
     """Open ``/dev/i2c-<bus>``; smbus2 is imported here so the simulator never needs it."""
@@ -77,6 +79,9 @@ class CountingBus:
         self.traffic.messages += 1
         self.traffic.payload_bytes += 1
         return self._bus.read_byte(i2c_addr)
+
+    def close(self) -> None:
+        self._bus.close()
 
     def reset(self) -> BusTraffic:
         """Return the traffic so far and start counting from zero."""

@@ -8,7 +8,7 @@ signals data ready, a result read before data ready is the previous one, and a s
 interrupt is not cleared keeps its old sample.
 
 Faults are attributes set from the test: ``SimI2CBus.timeout``, ``SimTCA9548A.nack`` /
-``frozen``, ``SimVL53L1X.nack`` / ``forced_status`` / ``model_id``.
+``frozen``, ``SimVL53L1X.nack`` / ``forced_status`` / ``model_id`` / ``halt()``.
 """
 
 from __future__ import annotations
@@ -234,7 +234,7 @@ class SimVL53L1X:
             if self._ranging_since is not None:
                 self._latched = self._sample_index()  # samples until now are gone
         elif reg == chip.REG_SYSTEM_MODE_START:
-            self._start() if value == chip.MODE_START_CONTINUOUS else self._stop()
+            self._start() if value == chip.MODE_START_CONTINUOUS else self.halt()
 
     def _int(self, reg: int, size: int) -> int:
         return int.from_bytes(self.regs[reg : reg + size], "big")
@@ -260,7 +260,8 @@ class SimVL53L1X:
         self._ranging_since = self.clock()
         self._latched = 0
 
-    def _stop(self) -> None:
+    def halt(self) -> None:
+        """Stop ranging (also a fault: a sensor that silently stops, as after a brown-out)."""
         self._ranging_since = None
 
     def _sample_index(self) -> int:
