@@ -36,6 +36,11 @@ def build_parser() -> argparse.ArgumentParser:
     _add_common(run)
     sim = sub.add_parser("sim", help="run the daemon on the simulated robot and world")
     _add_common(sim)
+    check = sub.add_parser("check-hardware", help="probe every device once and print a table")
+    _add_common(check)
+    check.add_argument("--sim", action="store_true", help="probe the simulated buses instead")
+    check.add_argument("--json", action="store_true", help="print the table as JSON")
+    check.add_argument("--fault", help="with --sim: inject a fault, e.g. tof3-nack, uwb-unplug")
     return parser
 
 
@@ -54,6 +59,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"coffeebot: configuration error\n{exc}", file=sys.stderr)
         return 2
     setup_logging(args.log_level or config.logging.level)
+    if args.command == "check-hardware":
+        from coffeebot.hardware import selfcheck
+
+        return selfcheck.main(config, sim=args.sim, as_json=args.json, fault=args.fault)
     log.info("starting %s", args.command, extra={"board": str(args.board)})
     asyncio.run(_run_daemon(config))
     return 0

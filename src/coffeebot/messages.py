@@ -84,7 +84,7 @@ class AnchorRange(Message):
     y_mm: float
     z_mm: float
     distance_mm: float
-    quality: int
+    quality: int | None = None  # `lec` reports no per-anchor quality; the TLV API does
 
 
 class UwbFix(Message):

@@ -1,0 +1,270 @@
+"""VL53L1X time-of-flight sensor over I2C, following ST's ultra-lite driver (ULD) sequence.
+
+Register indexes are 16 bits wide and SMBus calls carry only one command byte, so every
+access is a combined ``i2c_rdwr`` transaction: a write of the big-endian index (plus data
+for writes), then, for reads, a read message after a repeated START.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from enum import IntEnum
+
+from smbus2 import i2c_msg
+
+from coffeebot.hardware.errors import DeviceError
+from coffeebot.hardware.i2c import I2CBus
+from coffeebot.messages import ReadingStatus
+
+DEFAULT_ADDRESS = 0x29
+MODEL_ID = 0xEACC  # 0x010F..0x0110; the ULD header's "0xEEAC" is a documentation error
+
+# Registers (names from ST's ULD).
+REG_VHV_CONFIG_TIMEOUT_MACROP_LOOP_BOUND = 0x0008
+REG_VHV_CONFIG_INIT = 0x000B
+REG_CONFIG_BLOCK = 0x002D
+REG_GPIO_HV_MUX_CTRL = 0x0030
+REG_GPIO_TIO_HV_STATUS = 0x0031
+REG_PHASECAL_CONFIG_TIMEOUT_MACROP = 0x004B
+REG_RANGE_CONFIG_TIMEOUT_MACROP_A = 0x005E
+REG_RANGE_CONFIG_VCSEL_PERIOD_A = 0x0060
+REG_RANGE_CONFIG_TIMEOUT_MACROP_B = 0x0061
+REG_RANGE_CONFIG_VCSEL_PERIOD_B = 0x0063
+REG_RANGE_CONFIG_VALID_PHASE_HIGH = 0x0069
+REG_INTERMEASUREMENT_MS = 0x006C
+REG_SD_CONFIG_WOI_SD0 = 0x0078
+REG_SD_CONFIG_INITIAL_PHASE_SD0 = 0x007A
+REG_SYSTEM_INTERRUPT_CLEAR = 0x0086
+REG_SYSTEM_MODE_START = 0x0087
+REG_RESULT_RANGE_STATUS = 0x0089
+REG_RESULT_OSC_CALIBRATE_VAL = 0x00DE
+REG_FIRMWARE_SYSTEM_STATUS = 0x00E5
+REG_MODEL_ID = 0x010F
+
+MODE_START_CONTINUOUS = 0x40
+MODE_STOP = 0x00
+GPIO_ACTIVE_LOW_BIT = 0x10
+IMP_CLOCK_FACTOR = 1.075  # ULD: IMP register = osc_calibrate * ms * 1.075
+
+# Result burst from 0x0089: status at offset 0, distance at 13..14, peak signal rate at 15..16.
+RESULT_BURST = 17
+RESULT_DISTANCE_OFFSET = 13
+RESULT_SIGNAL_OFFSET = 15
+
+# The 91-byte default configuration written to 0x2D..0x87 (ST ULD 1.x / Adafruit values).
+DEFAULT_CONFIGURATION = bytes.fromhex(
+    "00 00 00 01 02 00 02 08 00 08 10 01 01 00 00 00"  # 0x2D..0x3C
+    "00 FF 00 0F 00 00 00 00 00 20 0B 00 00 02 0A 21"  # 0x3D..0x4C
+    "00 00 05 00 00 00 00 C8 00 00 38 FF 01 00 08 00"  # 0x4D..0x5C
+    "00 01 CC 0F 01 F1 0D 01 68 00 80 08 B8 00 00 00"  # 0x5D..0x6C
+    "00 0F 89 00 00 00 00 00 00 00 01 0F 0D 0E 0E 00"  # 0x6D..0x7C
+    "00 02 C7 FF 9B 00 00 00 01 00 00"  # 0x7D..0x87
+)
+
+
+class DistanceMode(IntEnum):
+    SHORT = 1
+    LONG = 2
+
+
+# Register values per distance mode (hardware.md 1.6); 16-bit entries are written big-endian.
+DISTANCE_MODE_REGISTERS: dict[DistanceMode, tuple[tuple[int, int, int], ...]] = {
+    DistanceMode.SHORT: (
+        (REG_PHASECAL_CONFIG_TIMEOUT_MACROP, 0x14, 1),
+        (REG_RANGE_CONFIG_VCSEL_PERIOD_A, 0x07, 1),
+        (REG_RANGE_CONFIG_VCSEL_PERIOD_B, 0x05, 1),
+        (REG_RANGE_CONFIG_VALID_PHASE_HIGH, 0x38, 1),
+        (REG_SD_CONFIG_WOI_SD0, 0x0705, 2),
+        (REG_SD_CONFIG_INITIAL_PHASE_SD0, 0x0606, 2),
+    ),
+    DistanceMode.LONG: (
+        (REG_PHASECAL_CONFIG_TIMEOUT_MACROP, 0x0A, 1),
+        (REG_RANGE_CONFIG_VCSEL_PERIOD_A, 0x0F, 1),
+        (REG_RANGE_CONFIG_VCSEL_PERIOD_B, 0x0D, 1),
+        (REG_RANGE_CONFIG_VALID_PHASE_HIGH, 0xB8, 1),
+        (REG_SD_CONFIG_WOI_SD0, 0x0F0D, 2),
+        (REG_SD_CONFIG_INITIAL_PHASE_SD0, 0x0E0E, 2),
+    ),
+}
+
+# Timing budget ms -> (TIMEOUT_MACROP_A, TIMEOUT_MACROP_B) words, per mode (hardware.md 1.7).
+TIMING_BUDGETS: dict[DistanceMode, dict[int, tuple[int, int]]] = {
+    DistanceMode.SHORT: {
+        15: (0x001D, 0x0027),
+        20: (0x0051, 0x006E),
+        33: (0x00D6, 0x006E),
+        50: (0x01AE, 0x01E8),
+        100: (0x02E1, 0x0388),
+        200: (0x03E1, 0x0496),
+        500: (0x0591, 0x05C1),
+    },
+    DistanceMode.LONG: {
+        20: (0x001E, 0x0022),
+        33: (0x0060, 0x006E),
+        50: (0x00AD, 0x00C6),
+        100: (0x01CC, 0x01EA),
+        200: (0x02D9, 0x02F8),
+        500: (0x048F, 0x04A4),
+    },
+}
+
+# RESULT__RANGE_STATUS & 0x1F -> typed status. Anything not listed is OTHER (ULD's 255).
+# Raw 8 (target closer than the minimum range) is OUT_OF_BOUNDS like raw 5 (beyond what it
+# can see): either way the distance is not a measurement. Raw 19 is "valid but without the
+# wrap-around check" (the first range after a start), which we do not trust either.
+RANGE_STATUS: dict[int, ReadingStatus] = {
+    9: ReadingStatus.VALID,
+    6: ReadingStatus.SIGMA_FAIL,
+    4: ReadingStatus.SIGNAL_FAIL,
+    23: ReadingStatus.SIGNAL_FAIL,
+    5: ReadingStatus.OUT_OF_BOUNDS,
+    8: ReadingStatus.OUT_OF_BOUNDS,
+    3: ReadingStatus.HARDWARE_FAIL,
+    7: ReadingStatus.WRAP_AROUND,
+}
+RANGE_STATUS_MASK = 0x1F
+
+
+def reading_status(raw: int) -> ReadingStatus:
+    return RANGE_STATUS.get(raw & RANGE_STATUS_MASK, ReadingStatus.OTHER)
+
+
+@dataclass(frozen=True, slots=True)
+class Measurement:
+    status: ReadingStatus
+    raw_status: int
+    distance_mm: int
+    signal_rate_mcps: float
+
+
+class VL53L1X:
+    """One sensor at ``address`` on ``bus`` (behind a mux channel the caller selected).
+
+    Methods block; call them from the bus's worker thread. ``sleep`` paces the boot and
+    data-ready polls and is injectable so a simulated sensor can run on simulated time.
+    """
+
+    def __init__(
+        self,
+        bus: I2CBus,
+        address: int = DEFAULT_ADDRESS,
+        *,
+        name: str = "VL53L1X",
+        sleep: Callable[[float], None] = time.sleep,
+    ) -> None:
+        self.bus = bus
+        self.address = address
+        self.name = name
+        self._sleep = sleep
+        self._ready_level = 1  # GPIO level meaning "data ready"; read from 0x30 in init()
+        self._mode = DistanceMode.LONG
+
+    # --- register access ----------------------------------------------------------------
+
+    def read(self, reg: int, length: int) -> bytes:
+        index = i2c_msg.write(self.address, [reg >> 8, reg & 0xFF])
+        data = i2c_msg.read(self.address, length)
+        self.bus.i2c_rdwr(index, data)
+        return bytes(data)
+
+    def write(self, reg: int, data: bytes) -> None:
+        self.bus.i2c_rdwr(i2c_msg.write(self.address, bytes([reg >> 8, reg & 0xFF]) + data))
+
+    def read_int(self, reg: int, size: int) -> int:
+        return int.from_bytes(self.read(reg, size), "big")
+
+    def write_int(self, reg: int, value: int, size: int) -> None:
+        self.write(reg, value.to_bytes(size, "big"))
+
+    # --- bring-up -----------------------------------------------------------------------
+
+    def model_id(self) -> int:
+        return self.read_int(REG_MODEL_ID, 2)
+
+    def check_model_id(self) -> None:
+        got = self.model_id()
+        if got != MODEL_ID:
+            raise DeviceError(f"{self.name}: model id 0x{got:04X}, expected 0x{MODEL_ID:04X}")
+
+    def wait_booted(self, polls: int = 100, interval_s: float = 0.002) -> None:
+        for _ in range(polls):
+            if self.read_int(REG_FIRMWARE_SYSTEM_STATUS, 1):
+                return
+            self._sleep(interval_s)
+        raise DeviceError(f"{self.name}: not booted after {polls} polls of 0x00E5")
+
+    def init(self) -> None:
+        """ULD SensorInit: boot wait, id check, default configuration, one VHV calibration
+        measurement, then stop. Leaves the sensor configured but not ranging."""
+        self.wait_booted()
+        self.check_model_id()
+        self.write(REG_CONFIG_BLOCK, DEFAULT_CONFIGURATION)
+        self._ready_level = 0 if self.read_int(REG_GPIO_HV_MUX_CTRL, 1) & GPIO_ACTIVE_LOW_BIT else 1
+        self.start_ranging()
+        self.wait_data_ready()
+        self.clear_interrupt()
+        self.stop_ranging()
+        self.write_int(REG_VHV_CONFIG_TIMEOUT_MACROP_LOOP_BOUND, 0x09, 1)
+        self.write_int(REG_VHV_CONFIG_INIT, 0x00, 1)
+        self._mode = DistanceMode.LONG  # what the default block sets
+
+    def configure(self, mode: DistanceMode, budget_ms: int, period_ms: int) -> None:
+        """Distance mode, timing budget and inter-measurement period, in the order the
+        registers require (the budget words depend on the mode)."""
+        self.set_distance_mode(mode)
+        self.set_timing_budget(budget_ms)
+        self.set_inter_measurement(period_ms)
+
+    def set_distance_mode(self, mode: DistanceMode) -> None:
+        for reg, value, size in DISTANCE_MODE_REGISTERS[mode]:
+            self.write_int(reg, value, size)
+        self._mode = mode
+
+    def set_timing_budget(self, budget_ms: int) -> None:
+        table = TIMING_BUDGETS[self._mode]
+        if budget_ms not in table:
+            raise ValueError(
+                f"{self.name}: no {budget_ms} ms timing budget in {self._mode.name} mode; "
+                f"choose one of {sorted(table)}"
+            )
+        a, b = table[budget_ms]
+        self.write_int(REG_RANGE_CONFIG_TIMEOUT_MACROP_A, a, 2)
+        self.write_int(REG_RANGE_CONFIG_TIMEOUT_MACROP_B, b, 2)
+
+    def set_inter_measurement(self, period_ms: int) -> None:
+        clock_pll = self.read_int(REG_RESULT_OSC_CALIBRATE_VAL, 2) & 0x3FF
+        self.write_int(REG_INTERMEASUREMENT_MS, int(clock_pll * period_ms * IMP_CLOCK_FACTOR), 4)
+
+    # --- ranging ------------------------------------------------------------------------
+
+    def start_ranging(self) -> None:
+        self.clear_interrupt()  # a stale interrupt would otherwise hide the first sample
+        self.write_int(REG_SYSTEM_MODE_START, MODE_START_CONTINUOUS, 1)
+
+    def stop_ranging(self) -> None:
+        self.write_int(REG_SYSTEM_MODE_START, MODE_STOP, 1)
+
+    def clear_interrupt(self) -> None:
+        self.write_int(REG_SYSTEM_INTERRUPT_CLEAR, 0x01, 1)
+
+    def data_ready(self) -> bool:
+        return (self.read_int(REG_GPIO_TIO_HV_STATUS, 1) & 0x01) == self._ready_level
+
+    def wait_data_ready(self, polls: int = 1000, interval_s: float = 0.001) -> None:
+        for _ in range(polls):
+            if self.data_ready():
+                return
+            self._sleep(interval_s)
+        raise DeviceError(f"{self.name}: no data ready after {polls} polls")
+
+    def read_measurement(self) -> Measurement:
+        """The latched result. Call only after :meth:`data_ready`, then clear the interrupt,
+        or the sensor keeps the old sample and signals no new one."""
+        burst = self.read(REG_RESULT_RANGE_STATUS, RESULT_BURST)
+        raw = burst[0] & RANGE_STATUS_MASK
+        distance = int.from_bytes(burst[RESULT_DISTANCE_OFFSET : RESULT_DISTANCE_OFFSET + 2], "big")
+        signal = int.from_bytes(burst[RESULT_SIGNAL_OFFSET : RESULT_SIGNAL_OFFSET + 2], "big")
+        # The peak signal rate is MCPS in 9.7 fixed point.
+        return Measurement(reading_status(raw), raw, distance, signal / 128.0)

@@ -1,0 +1,184 @@
+"""Motor driver module: motor commands to the controller, telemetry back as odometry.
+
+The current command is re-sent every ``keepalive_s`` to feed the controller's 200 ms
+watchdog; a command older than ``command_timeout_s`` is replaced by a stop, so a silent
+motion module stops the robot here as well as at the controller. On shutdown it sends a stop
+before the daemon cancels anything.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from coffeebot.config import MotorConfig
+from coffeebot.hardware.motor import Boot, MotorController, parse
+from coffeebot.hardware.serial_port import SerialPort, open_port
+from coffeebot.hardware.worker import DeviceWorker
+from coffeebot.messages import HEALTH, MOTOR_COMMAND, ODOMETRY, Health, HealthStatus, Odometry
+from coffeebot.modules.backoff import Backoff
+from coffeebot.modules.base import Module, ModuleContext
+
+
+@dataclass
+class MotorCounters:
+    telemetry: int = 0
+    garbage: int = 0
+    controller_boots: int = 0
+    commands: int = 0
+    stale_stops: int = 0
+    failures: int = 0
+
+
+class MotorDriver(Module):
+    name = "motor"
+    inputs = (MOTOR_COMMAND,)
+    outputs = (ODOMETRY, HEALTH)
+    shutdown_order = 0  # first: the motors stop before anything else goes down
+    critical = True
+
+    def __init__(
+        self,
+        motor: MotorConfig,
+        *,
+        keepalive_s: float = 0.05,
+        command_timeout_s: float = 0.25,
+        read_timeout_s: float = 0.05,
+        backoff_s: tuple[float, float] = (0.25, 4.0),
+        opener: Callable[[str, int, float], SerialPort] = open_port,
+    ) -> None:
+        if keepalive_s * 2 > motor.watchdog_ms / 1000.0:
+            raise ValueError("keepalive must be at most half the controller watchdog")
+        self.motor = motor
+        self.keepalive_s = keepalive_s
+        self.command_timeout_s = command_timeout_s
+        self.read_timeout_s = read_timeout_s
+        self.backoff_s = backoff_s
+        self.opener = opener
+        self.counters = MotorCounters()
+        self._controller: MotorController | None = None
+        self._writer: DeviceWorker | None = None
+        self._stopping = False
+
+    async def run(self, ctx: ModuleContext) -> None:
+        reader, writer = DeviceWorker("motor-rx"), DeviceWorker("motor-tx")
+        backoff = Backoff(*self.backoff_s)
+        try:
+            while True:
+                try:
+                    port = await reader.call(
+                        self.opener, self.motor.port, self.motor.baudrate, self.read_timeout_s
+                    )
+                except OSError as exc:
+                    await self._failed(ctx, exc, backoff)
+                    continue
+                ctrl = MotorController(port)
+                self._controller, self._writer = ctrl, writer
+                try:
+                    await self._connected(ctx, reader, writer, ctrl, backoff)
+                except OSError as exc:
+                    await self._failed(ctx, exc, backoff)
+                finally:
+                    self._controller = None
+                    await reader.call(port.close)
+        finally:
+            reader.close()
+            writer.close()
+
+    async def _connected(
+        self,
+        ctx: ModuleContext,
+        reader: DeviceWorker,
+        writer: DeviceWorker,
+        ctrl: MotorController,
+        backoff: Backoff,
+    ) -> None:
+        """Run the telemetry and command loops until either fails; re-raise its error."""
+        tasks = [
+            asyncio.create_task(self._read_loop(ctx, reader, ctrl, backoff)),
+            asyncio.create_task(self._write_loop(ctx, writer, ctrl)),
+        ]
+        try:
+            done, _ = await asyncio.wait(tasks, return_when=asyncio.FIRST_EXCEPTION)
+        finally:
+            for task in tasks:
+                task.cancel()
+            for task in tasks:
+                with contextlib.suppress(asyncio.CancelledError):
+                    await task
+        for task in done:
+            task.result()
+
+    async def _read_loop(
+        self, ctx: ModuleContext, reader: DeviceWorker, ctrl: MotorController, backoff: Backoff
+    ) -> None:
+        healthy = False
+        while True:
+            line = await reader.call(ctrl.readline)
+            if line is None:
+                continue
+            try:
+                event = parse(line)
+            except ValueError:
+                self.counters.garbage += 1
+                continue
+            if isinstance(event, Odometry):
+                self.counters.telemetry += 1
+                ctx.board.publish(ODOMETRY, event)
+                if not healthy:
+                    healthy = True
+                    backoff.reset()
+                    self._health(ctx, HealthStatus.RUNNING, f"telemetry on {self.motor.port}")
+            elif isinstance(event, Boot):
+                # Counters restarted at zero: consumers must not difference across this.
+                self.counters.controller_boots += 1
+                self._health(ctx, HealthStatus.DEGRADED, f"controller booted ({event.firmware})")
+                healthy = False
+
+    async def _write_loop(
+        self, ctx: ModuleContext, writer: DeviceWorker, ctrl: MotorController
+    ) -> None:
+        while True:
+            with contextlib.suppress(TimeoutError):
+                await ctx.board.next(MOTOR_COMMAND, timeout=self.keepalive_s)
+            latest = ctx.board.latest(MOTOR_COMMAND)
+            age = ctx.board.age(MOTOR_COMMAND)
+            fresh = latest is not None and age is not None and age <= self.command_timeout_s
+            if fresh and latest is not None and not self._stopping:
+                await writer.call(ctrl.set_speeds, latest.msg.left_mm_s, latest.msg.right_mm_s)
+                self.counters.commands += 1
+            else:
+                if latest is not None and not self._stopping:
+                    self.counters.stale_stops += 1
+                await writer.call(ctrl.stop)
+
+    async def shutdown(self) -> None:
+        """Send a stop now and only stops from here on; the controller's watchdog is the
+        fallback if this fails."""
+        self._stopping = True
+        ctrl, writer = self._controller, self._writer
+        if ctrl is None or writer is None:
+            return
+        with contextlib.suppress(OSError):
+            await writer.call(ctrl.stop)
+
+    async def _failed(self, ctx: ModuleContext, exc: OSError, backoff: Backoff) -> None:
+        self.counters.failures += 1
+        delay = backoff.next_delay()
+        ctx.log.warning("motor controller on %s: %s; retry in %.2f s", self.motor.port, exc, delay)
+        self._health(ctx, HealthStatus.DEGRADED, f"{exc}; retry in {delay:.2f} s")
+        await ctx.clock.sleep(delay)
+
+    def _health(self, ctx: ModuleContext, status: HealthStatus, detail: str) -> None:
+        ctx.board.publish(
+            HEALTH,
+            Health(
+                module=self.name,
+                component=self.motor.port,
+                status=status,
+                restarts=self.counters.failures,
+                detail=detail,
+            ),
+        )

@@ -1,0 +1,222 @@
+"""ToF poller: cycles the VL53L1X sensors through the mux and publishes one scan per cycle.
+
+Each sensor is independent: an ``OSError`` from one (a NACK, a bus timeout, a wrong model id)
+marks that sensor unhealthy in the scan and on the health topic and schedules its
+re-initialisation with backoff, while the others keep being read in the same cycle.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from coffeebot.config import I2CConfig, TofConfig, TofSensorConfig
+from coffeebot.hardware.i2c import I2CBus
+from coffeebot.hardware.tca9548a import TCA9548A
+from coffeebot.hardware.vl53l1x import VL53L1X, DistanceMode
+from coffeebot.hardware.worker import DeviceWorker
+from coffeebot.messages import (
+    HEALTH,
+    RANGE_SCAN,
+    Health,
+    HealthStatus,
+    RangeReading,
+    RangeScan,
+    ReadingStatus,
+)
+from coffeebot.modules.backoff import Backoff
+from coffeebot.modules.base import Module, ModuleContext
+
+DISTANCE_MODES = {"short": DistanceMode.SHORT, "long": DistanceMode.LONG}
+
+
+@dataclass
+class SensorSlot:
+    """One configured sensor, its driver and its health."""
+
+    cfg: TofSensorConfig
+    driver: VL53L1X
+    backoff: Backoff
+    healthy: bool = False
+    retry_at: float = 0.0
+    failures: int = 0
+    error: str = "not initialised"
+
+    @property
+    def component(self) -> str:
+        return f"tof{self.cfg.id}"
+
+
+class TofPoller(Module):
+    name = "tof"
+    outputs = (RANGE_SCAN, HEALTH)
+
+    def __init__(
+        self,
+        i2c: I2CConfig,
+        tof: TofConfig,
+        open_bus: Callable[[], I2CBus],
+        *,
+        poll_interval_s: float = 0.002,
+        backoff_s: tuple[float, float] = (0.25, 8.0),
+        blocking_sleep: Callable[[float], None] = time.sleep,
+    ) -> None:
+        """``open_bus`` makes the bus (smbus2 on the robot, the simulated bus in tests);
+        ``blocking_sleep`` paces the driver's polls inside the bus thread."""
+        self.i2c = i2c
+        self.tof = tof
+        self.open_bus = open_bus
+        self.poll_interval_s = poll_interval_s
+        self.backoff_s = backoff_s
+        self.blocking_sleep = blocking_sleep
+        budget_s = tof.timing_budget_ms / 1000.0
+        self.period_s = 1.0 / tof.scan_rate_hz if tof.scan_rate_hz else budget_s
+        # The sensors range at the scan rate, so each cycle reads a fresh sample.
+        self.sample_period_ms = max(tof.timing_budget_ms, round(self.period_s * 1000))
+        self.scans = 0
+
+    async def run(self, ctx: ModuleContext) -> None:
+        bus = self.open_bus()
+        worker = DeviceWorker(f"i2c-{self.i2c.bus}")
+        mux = TCA9548A(bus, self.i2c.mux_address)
+        slots = [
+            SensorSlot(
+                cfg,
+                VL53L1X(
+                    bus,
+                    self.i2c.sensor_address,
+                    name=f"VL53L1X tof{cfg.id} on mux channel {cfg.channel}",
+                    sleep=self.blocking_sleep,
+                ),
+                Backoff(*self.backoff_s),
+            )
+            for cfg in sorted(self.tof.sensors, key=lambda s: s.id)
+        ]
+        try:
+            while True:
+                await self._cycle(ctx, worker, mux, slots)
+        finally:
+            worker.close()
+            bus.close()
+
+    async def _cycle(
+        self, ctx: ModuleContext, worker: DeviceWorker, mux: TCA9548A, slots: list[SensorSlot]
+    ) -> None:
+        clock = ctx.clock
+        start = clock.now()
+        readings: dict[int, RangeReading] = {}
+        for slot in slots:
+            if not slot.healthy and start >= slot.retry_at:
+                await self._bring_up(ctx, worker, mux, slot)
+            if not slot.healthy:
+                readings[slot.cfg.id] = _failed(slot)
+        pending = [s for s in slots if s.healthy]
+        deadline = start + 2 * self.sample_period_ms / 1000.0
+        while pending:
+            for slot, result in zip(
+                pending, await worker.call(self._poll, mux, pending), strict=True
+            ):
+                if isinstance(result, OSError):
+                    self._mark_failed(ctx, slot, result)
+                    readings[slot.cfg.id] = _failed(slot)
+                elif result is not None:
+                    readings[slot.cfg.id] = result
+            pending = [s for s in pending if s.cfg.id not in readings]
+            if pending and clock.now() >= deadline:
+                for slot in pending:
+                    readings[slot.cfg.id] = RangeReading(
+                        sensor=slot.cfg.id, status=ReadingStatus.NOT_READY
+                    )
+                break
+            if pending:
+                await clock.sleep(self.poll_interval_s)
+        ctx.board.publish(
+            RANGE_SCAN,
+            RangeScan(
+                cycle_start_s=start,
+                cycle_time_s=clock.now() - start,
+                readings=[readings[s.cfg.id] for s in slots],
+            ),
+        )
+        self.scans += 1
+        await clock.sleep(start + self.period_s - clock.now())
+
+    def _poll(self, mux: TCA9548A, slots: list[SensorSlot]) -> list[RangeReading | OSError | None]:
+        """One pass over the sensors still waiting, in the bus thread: each sensor's mux
+        selection and transfers run back to back. None means "no new sample yet"."""
+        results: list[RangeReading | OSError | None] = []
+        for slot in slots:
+            try:
+                mux.select(slot.cfg.channel)
+                if not slot.driver.data_ready():
+                    results.append(None)
+                    continue
+                m = slot.driver.read_measurement()
+                slot.driver.clear_interrupt()
+            except OSError as exc:
+                results.append(exc)
+                continue
+            valid = m.status is ReadingStatus.VALID
+            results.append(
+                RangeReading(
+                    sensor=slot.cfg.id,
+                    status=m.status,
+                    distance_mm=m.distance_mm if valid else None,
+                    signal_rate_mcps=m.signal_rate_mcps,
+                )
+            )
+        return results
+
+    def _init_sensor(self, mux: TCA9548A, slot: SensorSlot) -> None:
+        mux.select(slot.cfg.channel)
+        slot.driver.init()
+        slot.driver.configure(
+            DISTANCE_MODES[self.tof.distance_mode],
+            self.tof.timing_budget_ms,
+            self.sample_period_ms,
+        )
+        slot.driver.start_ranging()
+
+    async def _bring_up(
+        self, ctx: ModuleContext, worker: DeviceWorker, mux: TCA9548A, slot: SensorSlot
+    ) -> None:
+        try:
+            await worker.call(self._init_sensor, mux, slot)
+        except OSError as exc:
+            self._mark_failed(ctx, slot, exc)
+            return
+        slot.healthy = True
+        slot.backoff.reset()
+        ctx.board.publish(
+            HEALTH,
+            Health(
+                module=self.name,
+                component=slot.component,
+                status=HealthStatus.RUNNING,
+                restarts=slot.failures,
+                detail=f"mux channel {slot.cfg.channel}",
+            ),
+        )
+
+    def _mark_failed(self, ctx: ModuleContext, slot: SensorSlot, exc: OSError) -> None:
+        slot.healthy = False
+        slot.failures += 1
+        slot.error = str(exc)
+        delay = slot.backoff.next_delay()
+        slot.retry_at = ctx.clock.now() + delay
+        ctx.log.warning("%s failed, retry in %.2f s: %s", slot.component, delay, exc)
+        ctx.board.publish(
+            HEALTH,
+            Health(
+                module=self.name,
+                component=slot.component,
+                status=HealthStatus.DEGRADED,
+                restarts=slot.failures,
+                detail=slot.error,
+            ),
+        )
+
+
+def _failed(slot: SensorSlot) -> RangeReading:
+    return RangeReading(sensor=slot.cfg.id, status=ReadingStatus.BUS_ERROR, healthy=False)

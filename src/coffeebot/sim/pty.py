@@ -1,0 +1,122 @@
+"""A simulated UART device on the master side of a pseudo-terminal.
+
+The driver opens :attr:`PtyDevice.port`, a symlink to the pty's slave side, like a real
+``/dev/serial/by-id/...`` link: unplugging removes the link and hangs up the line (the
+driver's reads fail), replugging makes a fresh pty behind the same path.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import select
+import tempfile
+import threading
+import time
+import tty
+from collections.abc import Callable
+from pathlib import Path
+
+
+class PtyDevice:
+    """Base class: a thread that feeds received bytes to :meth:`on_data` and calls
+    :meth:`on_tick` every ``tick_s``. Subclasses speak the protocol."""
+
+    def __init__(
+        self,
+        name: str,
+        *,
+        tick_s: float = 0.005,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.clock = clock
+        self.tick_s = tick_s
+        self._dir = tempfile.TemporaryDirectory(prefix="coffeebot-sim-")
+        self.port = str(Path(self._dir.name) / name)
+        self._lock = threading.RLock()  # also guards subclass state
+        self._master: int | None = None
+        self._slave: int | None = None
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._serve, name=f"sim-{name}", daemon=True)
+        self.replug()
+
+    # --- for tests ----------------------------------------------------------------------
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join()
+        self.unplug()
+        self._dir.cleanup()
+
+    def __enter__(self) -> PtyDevice:
+        self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def unplug(self) -> None:
+        """Hang up: the driver's open port fails and the path disappears."""
+        with self._lock:
+            for fd in (self._master, self._slave):
+                if fd is not None:
+                    os.close(fd)
+            self._master = self._slave = None
+            Path(self.port).unlink(missing_ok=True)
+
+    def replug(self) -> None:
+        self.unplug()
+        master, slave = os.openpty()
+        tty.setraw(slave)  # no echo or line editing before the driver configures the port
+        os.set_blocking(master, False)
+        with self._lock:
+            self._master, self._slave = master, slave
+            os.symlink(os.ttyname(slave), self.port)
+        self.on_plugged()
+
+    @property
+    def plugged(self) -> bool:
+        return self._master is not None
+
+    def inject(self, data: bytes) -> None:
+        """Raw bytes on the line: garbage, a partial line, noise."""
+        self.send(data)
+
+    # --- for subclasses -----------------------------------------------------------------
+
+    def send(self, data: bytes) -> None:
+        """Write to the line; bytes nobody reads are lost once the pty buffer is full, like
+        a UART transmitting to an unplugged host."""
+        with self._lock:
+            if self._master is None:
+                return
+            with contextlib.suppress(OSError):  # BlockingIOError: the buffer is full
+                os.write(self._master, data)
+
+    def on_plugged(self) -> None:
+        """Called when the device is (re)connected, before any byte is exchanged."""
+
+    def on_data(self, data: bytes) -> None:
+        raise NotImplementedError
+
+    def on_tick(self, now: float) -> None:
+        raise NotImplementedError
+
+    def _serve(self) -> None:
+        while not self._stop.is_set():
+            master = self._master
+            if master is None:
+                self._stop.wait(self.tick_s)
+            else:
+                try:
+                    readable, _, _ = select.select([master], [], [], self.tick_s)
+                    data = os.read(master, 4096) if readable else b""
+                except OSError:
+                    data = b""  # unplugged under our feet, or nobody has the slave open
+                if data:
+                    self.on_data(data)
+            self.on_tick(self.clock())
