@@ -144,7 +144,6 @@ class CollisionStatus(Message):
     speed_limit_mm_s: float = 0.0
 
 
-
 # --- orders and delivery ------------------------------------------------------------------
 
 
