@@ -7,7 +7,7 @@ from pathlib import Path
 from coffeebot.config import RobotConfig, load_robot_config
 from coffeebot.messages import RangeReading, RangeScan, ReadingStatus
 
-BOARD_FILE = Path(__file__).resolve().parents[1] / "boards" / "coffeebot-v1.toml"
+BOARD_FILE = Path(__file__).resolve().parents[2] / "boards" / "coffeebot-v1.toml"
 
 
 def robot() -> RobotConfig:
