@@ -144,6 +144,51 @@ class CollisionStatus(Message):
     speed_limit_mm_s: float = 0.0
 
 
+# --- orders and delivery ------------------------------------------------------------------
+
+
+class OrderStatus(StrEnum):
+    """The lifecycle a customer sees on their status page."""
+
+    QUEUED = "queued"
+    PREPARING = "preparing"
+    ON_THE_WAY = "on_the_way"
+    WAITING_FOR_ELEVATOR = "waiting_for_elevator"
+    ARRIVED = "arrived"
+    DELIVERED = "delivered"
+    CANCELLED = "cancelled"
+    FAILED = "failed"
+
+    @property
+    def final(self) -> bool:
+        return self in (OrderStatus.DELIVERED, OrderStatus.CANCELLED, OrderStatus.FAILED)
+
+
+class OrderDispatch(Message):
+    """The orders module hands the head of the queue to navigation, one order at a time."""
+
+    order_id: str
+    room: str
+    drink: str
+    name: str
+
+
+class DeliveryUpdate(Message):
+    """Navigation reports progress on the dispatched order; the orders module persists it."""
+
+    order_id: str
+    status: OrderStatus
+    detail: str = ""
+
+
+class OperatorEvent(Message):
+    """A person acted: staff loaded the cup, the customer took it, an operator cancelled."""
+
+    kind: Literal["cup_loaded", "pickup_confirmed", "cancel"]
+    order_id: str
+    source: str = "web"
+
+
 HEALTH = Topic("system/health", Health, Delivery.RELIABLE, queue_size=1024)
 RANGE_SCAN = Topic("tof/scan", RangeScan, Delivery.LATEST)
 UWB_FIX = Topic("uwb/fix", UwbFix, Delivery.LATEST)
@@ -151,6 +196,9 @@ ODOMETRY = Topic("motor/odometry", Odometry, Delivery.RELIABLE, queue_size=512)
 MOTOR_COMMAND = Topic("motor/command", MotorCommand, Delivery.LATEST)
 ESTOP = Topic("operator/estop", EStop, Delivery.RELIABLE)
 COLLISION = Topic("safety/collision", CollisionStatus, Delivery.LATEST)
+ORDER_DISPATCH = Topic("orders/dispatch", OrderDispatch, Delivery.RELIABLE)
+DELIVERY_STATUS = Topic("delivery/status", DeliveryUpdate, Delivery.RELIABLE)
+OPERATOR_EVENT = Topic("operator/event", OperatorEvent, Delivery.RELIABLE)
 
 ALL_TOPICS: tuple[Topic, ...] = (
     HEALTH,
@@ -160,4 +208,7 @@ ALL_TOPICS: tuple[Topic, ...] = (
     MOTOR_COMMAND,
     ESTOP,
     COLLISION,
+    ORDER_DISPATCH,
+    DELIVERY_STATUS,
+    OPERATOR_EVENT,
 )

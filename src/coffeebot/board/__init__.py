@@ -1,0 +1,18 @@
+"""The typed publish/subscribe message board that connects every module."""
+
+from coffeebot.board.board import Board, BoardError, BoardOverflowError, Subscription
+from coffeebot.board.stats import BoardSnapshot, SubscriberStats, TopicStats
+from coffeebot.board.topic import Delivery, Envelope, Topic
+
+__all__ = [
+    "Board",
+    "BoardError",
+    "BoardOverflowError",
+    "BoardSnapshot",
+    "Delivery",
+    "Envelope",
+    "SubscriberStats",
+    "Subscription",
+    "Topic",
+    "TopicStats",
+]

@@ -1,0 +1,63 @@
+"""The ``coffeebot`` command: run on the robot, run the simulator, and the tools around them."""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import logging
+import sys
+from pathlib import Path
+
+from coffeebot.board import Board
+from coffeebot.config import ConfigError, RobotConfig, load_robot_config
+from coffeebot.daemon import Daemon
+from coffeebot.logs import setup_logging
+from coffeebot.messages import ALL_TOPICS
+
+log = logging.getLogger("coffeebot")
+
+REPO_ROOT = Path(__file__).resolve().parents[2]
+DEFAULT_BOARD = REPO_ROOT / "boards" / "coffeebot-v1.toml"
+DEFAULT_FLOORPLAN = REPO_ROOT / "floorplans" / "cs-building.toml"
+
+
+def _add_common(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--board", type=Path, default=DEFAULT_BOARD, help="robot description")
+    parser.add_argument("--floorplan", type=Path, default=DEFAULT_FLOORPLAN, help="floor plan")
+    parser.add_argument("--log-level", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="coffeebot", description="Software of an indoor coffee-delivery robot."
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+    run = sub.add_parser("run", help="run the daemon on the robot's real hardware")
+    _add_common(run)
+    sim = sub.add_parser("sim", help="run the daemon on the simulated robot and world")
+    _add_common(sim)
+    return parser
+
+
+async def _run_daemon(config: RobotConfig) -> None:
+    board = Board(ALL_TOPICS)
+    daemon = Daemon(board, modules=[], supervision=config.supervision)
+    daemon.install_signal_handlers()
+    await daemon.run()
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        config = load_robot_config(args.board)
+    except ConfigError as exc:
+        print(f"coffeebot: configuration error\n{exc}", file=sys.stderr)
+        return 2
+    setup_logging(args.log_level or config.logging.level)
+    log.info("starting %s", args.command, extra={"board": str(args.board)})
+    asyncio.run(_run_daemon(config))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

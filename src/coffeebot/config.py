@@ -1,0 +1,179 @@
+"""The robot description: hardware wiring, geometry and every threshold, loaded from TOML.
+
+Each threshold defaults to the value in the seed paper it comes from (seed 000 unless noted),
+so an empty section means "as the paper built it". A broken file fails fast with
+:class:`ConfigError`, which names the file, the field and what is wrong.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+
+class ConfigError(ValueError):
+    """A configuration or floor-plan file that cannot be used, with the reason."""
+
+
+class Section(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class I2CConfig(Section):
+    bus: int = Field(1, ge=0, description="Linux I2C bus number (/dev/i2c-N)")
+    mux_address: int = Field(0x70, ge=0x70, le=0x77, description="TCA9548A address")
+    sensor_address: int = Field(0x29, ge=0x08, le=0x77, description="VL53L1X address")
+    frequency_hz: int = Field(400_000, gt=0, description="bus clock, for time budgets only")
+
+
+class TofSensorConfig(Section):
+    """One VL53L1X: its mux channel and where it sits on the body (robot frame)."""
+
+    id: int = Field(ge=0, le=7)
+    channel: int = Field(ge=0, le=7)
+    face: Literal["front", "left", "right", "rear"]
+    x_mm: float
+    y_mm: float
+    yaw_deg: float = Field(ge=-180, le=180)
+    height_mm: float = Field(250.0, gt=0)
+    fov_deg: float = Field(27.0, ge=15, le=27)
+
+
+class TofConfig(Section):
+    distance_mode: Literal["short", "long"] = "long"
+    timing_budget_ms: int = Field(20, ge=15, le=1000)
+    scan_rate_hz: float | None = Field(
+        None, gt=0, le=100, description="None: as fast as the timing budget allows"
+    )
+    max_range_mm: int = Field(4000, gt=0)
+    noisy_beyond_mm: int = Field(1000, gt=0)
+    sensors: list[TofSensorConfig]
+
+    @model_validator(mode="after")
+    def _unique(self) -> TofConfig:
+        for attr in ("id", "channel"):
+            values = [getattr(s, attr) for s in self.sensors]
+            dupes = sorted({v for v in values if values.count(v) > 1})
+            if dupes:
+                raise ValueError(f"duplicate sensor {attr} {dupes}")
+        return self
+
+
+class SerialPortConfig(Section):
+    port: str = Field(description="device path or pyserial URL")
+    baudrate: int = Field(115_200, gt=0)
+
+
+class MotorConfig(SerialPortConfig):
+    wheel_diameter_mm: float = Field(100.0, gt=0)
+    ticks_per_rev: int = Field(360, gt=0)
+    wheel_base_mm: float = Field(450.0, gt=0, description="distance between wheel contacts")
+    max_speed_mm_s: float = Field(1000.0, gt=0)
+    max_accel_mm_s2: float = Field(500.0, gt=0)
+    watchdog_ms: int = Field(200, gt=0, description="controller stops without a command")
+
+
+class GeometryConfig(Section):
+    width_mm: float = Field(510.0, gt=0)
+    length_mm: float = Field(610.0, gt=0)
+
+
+class CollisionConfig(Section):
+    front_radius_mm: float = Field(200.0, gt=0, description="seed 000 private sphere, front")
+    side_radius_mm: float = Field(50.0, gt=0, description="seed 000 private sphere, sides")
+    reaction_latency_s: float = Field(0.1, ge=0)
+    braking_mm_s2: float = Field(800.0, gt=0)
+    margin_mm: float = Field(50.0, ge=0)
+    slowdown_extra_mm: float = Field(400.0, ge=0)
+    hysteresis_mm: float = Field(30.0, ge=0)
+    stale_cycles: int = Field(5, ge=1)
+
+
+class AngleConfig(Section):
+    max_side_distance_mm: float = Field(850.0, gt=0, description="both side sensors below")
+    min_angle_deg: float = Field(5.0, ge=0, description="smaller angles are no correction")
+
+
+class DoorConfig(Section):
+    jump_mm: float = Field(80.0, gt=0, description="newer-half mean minus older-half mean")
+    door_width_mm: float = Field(900.0, gt=0)
+
+
+class MotionConfig(Section):
+    cruise_speed_mm_s: float = Field(500.0, gt=0)
+    wall_distance_mm: float = Field(300.0, gt=0, description="keep right at this distance")
+    stale_safety_s: float = Field(0.2, gt=0)
+    stop_tolerance_mm: float = Field(50.0, gt=0)
+
+
+class WebConfig(Section):
+    host: str = "127.0.0.1"
+    port: int = Field(8080, ge=0, le=65535)
+    operator_token_env: str = "COFFEEBOT_OPERATOR_TOKEN"
+    drinks: list[str] = ["espresso", "americano", "latte", "cappuccino", "tea"]
+
+
+class StoreConfig(Section):
+    path: Path = Path("var/orders.sqlite3")
+
+
+class LoggingConfig(Section):
+    level: Literal["DEBUG", "INFO", "WARNING", "ERROR"] = "INFO"
+
+
+class SupervisionConfig(Section):
+    restart_backoff_s: float = Field(0.5, gt=0)
+    restart_backoff_max_s: float = Field(10.0, gt=0)
+    max_restarts: int = Field(5, ge=0, description="within failure_window_s, then failed")
+    failure_window_s: float = Field(60.0, gt=0)
+
+
+class RobotConfig(Section):
+    name: str = "coffeebot"
+    i2c: I2CConfig = I2CConfig()
+    tof: TofConfig
+    uwb: SerialPortConfig
+    motor: MotorConfig
+    geometry: GeometryConfig = GeometryConfig()
+    collision: CollisionConfig = CollisionConfig()
+    angle: AngleConfig = AngleConfig()
+    door: DoorConfig = DoorConfig()
+    motion: MotionConfig = MotionConfig()
+    web: WebConfig = WebConfig()
+    store: StoreConfig = StoreConfig()
+    logging: LoggingConfig = LoggingConfig()
+    supervision: SupervisionConfig = SupervisionConfig()
+
+    def sensor(self, sensor_id: int) -> TofSensorConfig:
+        return next(s for s in self.tof.sensors if s.id == sensor_id)
+
+
+def describe_validation_error(path: Path, error: ValidationError) -> str:
+    """One line per problem: ``file: field.path: message``."""
+    lines = []
+    for item in error.errors():
+        where = ".".join(str(part) for part in item["loc"]) or "(top level)"
+        lines.append(f"{path}: {where}: {item['msg']}")
+    return "\n".join(lines)
+
+
+def read_toml(path: Path) -> dict[str, Any]:
+    try:
+        with path.open("rb") as fh:
+            return tomllib.load(fh)
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: file not found") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path}: not valid TOML: {exc}") from None
+
+
+def load_robot_config(path: str | Path) -> RobotConfig:
+    path = Path(path)
+    data = read_toml(path)
+    try:
+        return RobotConfig.model_validate(data)
+    except ValidationError as exc:
+        raise ConfigError(describe_validation_error(path, exc)) from None

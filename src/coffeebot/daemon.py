@@ -1,0 +1,173 @@
+"""The daemon: one board, the modules as supervised tasks, and an ordered shutdown.
+
+Supervision follows the usual shape (Erlang's one-for-one, systemd's Restart=): a module
+whose ``run`` raises is logged with its traceback, reported on the health topic and restarted
+after an exponential backoff; a module that fails more than ``max_restarts`` times within
+``failure_window_s`` is marked failed and left down. Safety never depends on a module being
+up: motion treats a failed or silent collision module as "stop".
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import signal
+from collections import deque
+from collections.abc import Iterable
+from typing import Any
+
+from coffeebot.board import Board
+from coffeebot.clock import Clock
+from coffeebot.config import SupervisionConfig
+from coffeebot.messages import HEALTH, Health, HealthStatus
+from coffeebot.modules.base import Module, ModuleBoard, ModuleContext
+
+log = logging.getLogger(__name__)
+
+SHUTDOWN_HOOK_TIMEOUT_S = 2.0
+
+
+class ModuleState:
+    """What the supervisor knows about one module."""
+
+    def __init__(self, module: Module) -> None:
+        self.module = module
+        self.status = HealthStatus.STARTING
+        self.restarts = 0
+        self.failure_times: deque[float] = deque()
+        self.last_error = ""
+        self.task: asyncio.Task[None] | None = None
+
+
+class Daemon:
+    """Runs modules on one board until asked to stop, then stops them in a defined order."""
+
+    def __init__(
+        self,
+        board: Board,
+        modules: Iterable[Module],
+        supervision: SupervisionConfig | None = None,
+        extras: dict[str, Any] | None = None,
+    ) -> None:
+        self.board = board
+        self.clock: Clock = board.clock
+        self.supervision = supervision or SupervisionConfig()
+        self.extras = extras or {}
+        self.states: dict[str, ModuleState] = {}
+        for module in modules:
+            if module.name in self.states:
+                raise ValueError(f"two modules are named {module.name!r}")
+            self.states[module.name] = ModuleState(module)
+        self._stop = asyncio.Event()
+        self.stop_reason = ""
+
+    @property
+    def modules(self) -> list[Module]:
+        return [state.module for state in self.states.values()]
+
+    def request_stop(self, reason: str) -> None:
+        if not self._stop.is_set():
+            log.info("shutdown requested: %s", reason)
+            self.stop_reason = reason
+            self._stop.set()
+
+    def install_signal_handlers(self) -> None:
+        loop = asyncio.get_running_loop()
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            loop.add_signal_handler(sig, self.request_stop, f"signal {sig.name}")
+
+    def _report(self, state: ModuleState, detail: str = "") -> None:
+        self.board.publish(
+            HEALTH,
+            Health(
+                module=state.module.name,
+                status=state.status,
+                restarts=state.restarts,
+                detail=detail,
+            ),
+        )
+
+    async def _supervise(self, state: ModuleState) -> None:
+        module = state.module
+        cfg = self.supervision
+        ctx = ModuleContext(
+            board=ModuleBoard(self.board, module),
+            clock=self.clock,
+            log=logging.getLogger(f"coffeebot.module.{module.name}"),
+            extras=self.extras,
+        )
+        backoff = cfg.restart_backoff_s
+        while True:
+            state.status = HealthStatus.RUNNING
+            self._report(state)
+            try:
+                await module.run(ctx)
+            except asyncio.CancelledError:
+                raise
+            except Exception as exc:
+                now = self.clock.now()
+                state.last_error = f"{type(exc).__name__}: {exc}"
+                state.failure_times.append(now)
+                while state.failure_times[0] < now - cfg.failure_window_s:
+                    state.failure_times.popleft()
+                if len(state.failure_times) > cfg.max_restarts:
+                    state.status = HealthStatus.FAILED
+                    log.error(
+                        "module %s failed %d times within %.0f s, giving up: %s",
+                        module.name,
+                        len(state.failure_times),
+                        cfg.failure_window_s,
+                        state.last_error,
+                        exc_info=True,
+                    )
+                    self._report(state, state.last_error)
+                    return
+                state.status = HealthStatus.RESTARTING
+                state.restarts += 1
+                log.error(
+                    "module %s crashed, restart %d in %.2f s: %s",
+                    module.name,
+                    state.restarts,
+                    backoff,
+                    state.last_error,
+                    exc_info=True,
+                )
+                self._report(state, state.last_error)
+                await self.clock.sleep(backoff)
+                backoff = min(backoff * 2, cfg.restart_backoff_max_s)
+            else:
+                state.status = HealthStatus.STOPPED
+                self._report(state, "run() returned")
+                log.info("module %s finished", module.name)
+                return
+
+    async def start(self) -> None:
+        for state in self.states.values():
+            state.task = asyncio.create_task(
+                self._supervise(state), name=f"module:{state.module.name}"
+            )
+        await asyncio.sleep(0)
+
+    async def run(self) -> None:
+        """Start every module, wait for a stop request, then shut down in order."""
+        await self.start()
+        try:
+            await self._stop.wait()
+        finally:
+            await self.shutdown()
+
+    async def shutdown(self) -> None:
+        """Safety hooks first (motors stop), then cancel tasks in reverse start order."""
+        for state in sorted(self.states.values(), key=lambda s: s.module.shutdown_order):
+            try:
+                await asyncio.wait_for(state.module.shutdown(), SHUTDOWN_HOOK_TIMEOUT_S)
+            except Exception:
+                log.exception("shutdown hook of module %s failed", state.module.name)
+        for state in reversed(self.states.values()):
+            if state.task is not None and not state.task.done():
+                state.task.cancel()
+                with contextlib.suppress(asyncio.CancelledError):
+                    await state.task
+            state.status = HealthStatus.STOPPED
+            self._report(state, "daemon stopped")

@@ -1,0 +1,1 @@
+"""Board tasks: each module reads declared topics and publishes declared topics."""
