@@ -50,6 +50,13 @@ class TofConfig(Section):
     )
     max_range_mm: int = Field(4000, gt=0)
     noisy_beyond_mm: int = Field(1000, gt=0)
+    effective_half_fov_deg: float = Field(
+        0.0,
+        ge=0,
+        le=20,
+        description="ranging model for wall geometry: 0 = the distance along the optical "
+        "axis; h = the nearest return within h degrees of it",
+    )
     sensors: list[TofSensorConfig]
 
     @model_validator(mode="after")
@@ -109,13 +116,6 @@ class AngleConfig(Section):
 
     max_side_distance_mm: float = Field(850.0, gt=0, description="both side sensors below")
     min_angle_deg: float = Field(5.0, ge=0, description="smaller angles are no correction")
-    effective_half_fov_deg: float = Field(
-        0.0,
-        ge=0,
-        le=20,
-        description="ranging model: 0 = reading along the optical axis; h = nearest return "
-        "within h degrees of it",
-    )
     scans_per_estimate: int = Field(
         8, ge=1, description="accepted scans averaged (heading changes compensated) per angle"
     )

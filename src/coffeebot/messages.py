@@ -219,6 +219,9 @@ class AngleEstimate(Message):
 class DoorEvent(Message):
     """A door (or opening) seen by one side's sensors while passing it.
 
+    ``side`` is the hallway's side (the floor plan's left/right looking from the hallway's
+    start to its end), not the robot's.
+
     ``x_mm``/``y_mm`` is where the sensors put the door centre; when the door was matched to
     the floor plan, ``room`` names it, ``plan_x_mm``/``plan_y_mm`` is its planned centre and
     ``along_correction_mm`` is how far the robot's along-hallway position was off (add it in

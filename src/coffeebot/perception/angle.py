@@ -92,8 +92,12 @@ class _Window:
 class AngleEstimator:
     """Feed it every scan with the current pose; it returns an estimate once a window is full."""
 
-    def __init__(self, sensors: Iterable[TofSensorConfig], cfg: AngleConfig) -> None:
+    def __init__(
+        self, sensors: Iterable[TofSensorConfig], cfg: AngleConfig, half_fov_deg: float = 0.0
+    ) -> None:
         self.cfg = cfg
+        self.half_fov_deg = half_fov_deg
+        """The ranging model (``TofConfig.effective_half_fov_deg``)."""
         self.pairs = side_pairs(sensors)
         self._window = _Window()
 
@@ -117,7 +121,7 @@ class AngleEstimator:
             return Rejection(f"{pair.side}: wall beyond {cfg.max_side_distance_mm:.0f} mm")
         # Right side: turning left (positive) takes the front sensor away from the wall.
         delta = front - rear if pair.side == "right" else rear - front
-        angle = pair_angle_deg(delta, pair.baseline_mm, cfg.effective_half_fov_deg)
+        angle = pair_angle_deg(delta, pair.baseline_mm, self.half_fov_deg)
         if angle is None:
             return Rejection(f"{pair.side}: readings inconsistent with a flat wall")
         # The plan: no door recess or opening under either cone, pose uncertainty included.
@@ -134,7 +138,7 @@ class AngleEstimator:
             feature = frame.floor.feature_at(frame.along(hit_x, hit_y), hall_side, margin)
             if feature is not None:
                 return Rejection(f"{pair.side}: sensor {sensor.id} cone on {feature.id}")
-        wall = perpendicular_mm((front + rear) / 2, angle, cfg.effective_half_fov_deg)
+        wall = perpendicular_mm((front + rear) / 2, angle, self.half_fov_deg)
         wall += pair.offset_mm * math.cos(math.radians(angle))
         lateral = frame.lateral(pose.x_mm, pose.y_mm)
         expected = frame.floor.hallway.width_mm / 2 + (
