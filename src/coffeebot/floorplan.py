@@ -24,11 +24,16 @@ from typing import Any, Literal, NamedTuple
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from coffeebot.config import ConfigError
+
 Side = Literal["left", "right"]
 
 
-class FloorPlanError(ValueError):
-    """A floor plan file that cannot be used, naming the file, the element and the problem."""
+class FloorPlanError(ConfigError):
+    """A floor plan file that cannot be used, naming the file, the element and the problem.
+
+    A :class:`~coffeebot.config.ConfigError` (so a ``ValueError``): the CLI reports both alike.
+    """
 
     def __init__(self, path: str | Path, element: str, problem: str) -> None:
         self.path = str(path)
