@@ -51,11 +51,11 @@ class TofConfig(Section):
     max_range_mm: int = Field(4000, gt=0)
     noisy_beyond_mm: int = Field(1000, gt=0)
     effective_half_fov_deg: float = Field(
-        0.0,
+        13.5,
         ge=0,
         le=20,
-        description="ranging model for wall geometry: 0 = the distance along the optical "
-        "axis; h = the nearest return within h degrees of it",
+        description="ranging model for wall geometry: a reading is the nearest return within "
+        "this many degrees of the optical axis (half the 27 degree cone); 0 = along the axis",
     )
     sensors: list[TofSensorConfig]
 
