@@ -96,7 +96,9 @@ class CollisionConfig(Section):
     reaction_latency_s: float = Field(
         0.1, ge=0, description="scan-to-brake latency: one scan period plus command transport"
     )
-    braking_mm_s2: float = Field(800.0, gt=0, description="deceleration the robot can rely on")
+    braking_mm_s2: float = Field(
+        450.0, gt=0, description="deceleration it can rely on: below the motor ramp (500)"
+    )
     margin_mm: float = Field(50.0, ge=0, description="added to the kinematic stop distance")
     slowdown_extra_mm: float = Field(
         400.0, ge=0, description="slowdown zone depth in front of the stop distance"

@@ -52,7 +52,7 @@ def test_stop_distance_grows_with_speed_and_never_below_seed_radius() -> None:
     assert stop_distance_mm(cfg, 0) == cfg.front_radius_mm
     assert stop_distance_mm(cfg, 50) == cfg.front_radius_mm
     fast = stop_distance_mm(cfg, 1000)
-    assert fast == pytest.approx(1000 * 0.1 + 1000**2 / 1600 + 50)
+    assert fast == pytest.approx(1000 * 0.1 + 1000**2 / 900 + 50)
     assert safe_speed_mm_s(cfg, fast - cfg.margin_mm) == pytest.approx(1000)
     # 500 mm ahead is fine when creeping, a stop at 1 m/s.
     assert monitor().update(scan({**CLEAR, 3: 500}), 1000, 1).state is SafetyState.STOP

@@ -28,17 +28,30 @@ from coffeebot.floorplan import Door, Floor, Opening, Side
 from coffeebot.messages import DoorEvent, PoseEstimate, RangeReading, RangeScan, ReadingStatus
 from coffeebot.perception.geometry import TravelFrame, sensor_origin
 
+MIN_VISIBLE_MM = 200.0
+"""The least of a door a side sensor is assumed to see, however far the wall."""
 
-def readings_per_door(cfg: DoorConfig, speed_mm_s: float, scan_rate_hz: float) -> int:
-    """How many readings one door spans at this speed and scan rate (clamped to the config)."""
+
+def readings_per_door(
+    cfg: DoorConfig, speed_mm_s: float, scan_rate_hz: float, visible_mm: float | None = None
+) -> int:
+    """How many readings one door spans at this speed and scan rate (clamped to the config).
+
+    ``visible_mm`` is the stretch over which the sensor actually reads the recess: a sensor
+    reporting the nearest return in its cone sees the door only once the whole cone is past
+    the edge, so a far wall shortens it (default: the whole door width).
+    """
+    width = cfg.door_width_mm if visible_mm is None else visible_mm
     step = abs(speed_mm_s) / scan_rate_hz
-    n = cfg.max_readings_per_door if step <= 0 else round(cfg.door_width_mm / step)
+    n = cfg.max_readings_per_door if step <= 0 else round(width / step)
     return max(cfg.min_readings_per_door, min(cfg.max_readings_per_door, n))
 
 
-def window_size(cfg: DoorConfig, speed_mm_s: float, scan_rate_hz: float) -> int:
+def window_size(
+    cfg: DoorConfig, speed_mm_s: float, scan_rate_hz: float, visible_mm: float | None = None
+) -> int:
     """The seed's window: twice the readings per door."""
-    return 2 * readings_per_door(cfg, speed_mm_s, scan_rate_hz)
+    return 2 * readings_per_door(cfg, speed_mm_s, scan_rate_hz, visible_mm)
 
 
 @dataclass(frozen=True)
@@ -127,7 +140,7 @@ class DoorDetector:
         if abs(speed_mm_s) < cfg.min_speed_mm_s:
             return []
         frame = TravelFrame.for_heading(floor, pose.heading_deg)
-        window = window_size(cfg, speed_mm_s, scan_rate_hz)
+        tan_half_fov = math.tan(math.radians(self.half_fov_deg))
         readings = {r.sensor: r for r in scan.readings}
         events = []
         for track in self.tracks.values():
@@ -141,6 +154,10 @@ class DoorDetector:
                 sx + reach * math.cos(math.radians(look)), sy + reach * math.sin(math.radians(look))
             )
             track.samples.append(_Sample(distance, along))
+            # The cone's footprint on the wall hides part of the door: size the window by what
+            # the sensor can see of it at its current distance from the wall.
+            visible = max(cfg.door_width_mm - 2.0 * distance * tan_half_fov, MIN_VISIBLE_MM)
+            window = window_size(cfg, speed_mm_s, scan_rate_hz, visible)
             fired = track.step(window, cfg.jump_mm)
             if fired is not None:
                 event = self._event(track, fired, frame, pose, scan_seq, window)
