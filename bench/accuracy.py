@@ -345,6 +345,11 @@ UNDETECTABLE = {
     "gap between a front cone's sampled rays beyond ~0.3 m and below the weak-target fraction",
     "mail_cart": "lower shelf tops out 20 mm below the sensors, so only the 30 mm corner bars "
     "cross the beams (seed: the right sensor missed the cart entirely)",
+    "swivel_chair": "at 250 mm only the 60 mm pole exists; the seat the body hits (430-500 mm) "
+    "is above the cones until ~0.6 m out, and the pole at a cone's edge is a weak target that "
+    "is reported only part of the time (seed figure 5)",
+    "person": "walks across the lane at 0.7 m/s: stepping in closer than the stop distance "
+    "(1.26 m at 1 m/s) cannot be braked for; a side sensor sees them only once beside the body",
 }
 
 
