@@ -50,6 +50,13 @@ class TofConfig(Section):
     )
     max_range_mm: int = Field(4000, gt=0)
     noisy_beyond_mm: int = Field(1000, gt=0)
+    effective_half_fov_deg: float = Field(
+        13.5,
+        ge=0,
+        le=20,
+        description="ranging model for wall geometry: a reading is the nearest return within "
+        "this many degrees of the optical axis (half the 27 degree cone); 0 = along the axis",
+    )
     sensors: list[TofSensorConfig]
 
     @model_validator(mode="after")
@@ -82,24 +89,103 @@ class GeometryConfig(Section):
 
 
 class CollisionConfig(Section):
+    """The seed's "private sphere", plus a speed-dependent stop distance and a slowdown zone."""
+
     front_radius_mm: float = Field(200.0, gt=0, description="seed 000 private sphere, front")
     side_radius_mm: float = Field(50.0, gt=0, description="seed 000 private sphere, sides")
-    reaction_latency_s: float = Field(0.1, ge=0)
-    braking_mm_s2: float = Field(800.0, gt=0)
-    margin_mm: float = Field(50.0, ge=0)
-    slowdown_extra_mm: float = Field(400.0, ge=0)
-    hysteresis_mm: float = Field(30.0, ge=0)
-    stale_cycles: int = Field(5, ge=1)
+    reaction_latency_s: float = Field(
+        0.1, ge=0, description="scan-to-brake latency: one scan period plus command transport"
+    )
+    braking_mm_s2: float = Field(
+        450.0, gt=0, description="deceleration it can rely on: below the motor ramp (500)"
+    )
+    margin_mm: float = Field(50.0, ge=0, description="added to the kinematic stop distance")
+    slowdown_extra_mm: float = Field(
+        400.0, ge=0, description="slowdown zone depth in front of the stop distance"
+    )
+    min_slow_speed_mm_s: float = Field(
+        50.0, gt=0, description="slowest crawl the slowdown zone asks for before stopping"
+    )
+    hysteresis_mm: float = Field(30.0, ge=0, description="extra clearance needed to relax")
+    stale_cycles: int = Field(5, ge=1, description="scans without a valid reading -> stop")
+    unknown_speed_mm_s: float | None = Field(
+        None, gt=0, description="speed assumed without fresh odometry; None: motor max speed"
+    )
 
 
 class AngleConfig(Section):
+    """Seed 000 angle correction from a side's sensor pair, with the door-straddle checks."""
+
     max_side_distance_mm: float = Field(850.0, gt=0, description="both side sensors below")
     min_angle_deg: float = Field(5.0, ge=0, description="smaller angles are no correction")
+    scans_per_estimate: int = Field(
+        8, ge=1, description="accepted scans averaged (heading changes compensated) per angle"
+    )
+    max_window_s: float = Field(3.0, gt=0, description="older accepted scans are dropped")
+    side_agreement_deg: float = Field(
+        3.0, gt=0, description="both walls in range must agree within this, per scan"
+    )
+    prior_gate_deg: float = Field(
+        8.0, gt=0, description="reject angles this far from the pose's heading (or 3 sigma)"
+    )
+    scan_outlier_deg: float = Field(
+        4.0, gt=0, description="a scan this far from the window's median is dropped"
+    )
+    footprint_margin_mm: float = Field(
+        50.0, ge=0, description="added to the cone's footprint when checking doors/openings"
+    )
 
 
 class DoorConfig(Section):
+    """Seed 000 door detection by a sliding window over one side sensor."""
+
     jump_mm: float = Field(80.0, gt=0, description="newer-half mean minus older-half mean")
     door_width_mm: float = Field(900.0, gt=0)
+    max_door_jump_mm: float = Field(
+        350.0, gt=0, description="larger jumps are an opening or an open door, not a recess"
+    )
+    min_readings_per_door: int = Field(2, ge=1)
+    max_readings_per_door: int = Field(60, ge=1)
+    min_speed_mm_s: float = Field(
+        20.0, ge=0, description="readings taken slower than this are not added to the window"
+    )
+    max_side_distance_mm: float = Field(
+        1500.0, gt=0, description="walls further than this are not used (noisy readings)"
+    )
+    match_gate_mm: float = Field(
+        1200.0, gt=0, description="a detection further than this from a plan door is unmatched"
+    )
+
+
+class StateConfig(Section):
+    """Pose fusion: seed 004 odometry and complementary filter, plus UWB, walls and doors."""
+
+    initial_floor: int = 2
+    turn_rate_dps: float = Field(
+        5.0, ge=0, description="encoder yaw rate above which the robot counts as turning"
+    )
+    gyro_weight: float = Field(
+        0.98, ge=0, le=1, description="seed 004 complementary filter weight of the gyro in turns"
+    )
+    gyro_calibration_samples: int = Field(
+        25, ge=1, description="at-rest gyro samples for the seed 004 offset and noise band"
+    )
+    encoder_sigma_fraction: float = Field(
+        0.02, ge=0, description="odometry distance 1-sigma as a fraction of distance"
+    )
+    heading_sigma_deg_per_m: float = Field(
+        0.5, ge=0, description="heading random walk per metre travelled"
+    )
+    uwb_sigma_mm: float = Field(100.0, gt=0, description="1-sigma of a quality-100 UWB fix")
+    uwb_gate_sigma: float = Field(
+        4.0, gt=0, description="fixes further than this (Mahalanobis) are outliers"
+    )
+    uwb_max_rejected: int = Field(
+        20, ge=1, description="after this many rejected fixes in a row the filter re-seeds"
+    )
+    door_sigma_mm: float = Field(40.0, gt=0, description="1-sigma of a matched door landmark")
+    wall_sigma_mm: float = Field(30.0, gt=0, description="1-sigma of a wall-distance fix")
+    publish_hz: float = Field(20.0, gt=0)
 
 
 class MotionConfig(Section):
@@ -141,6 +227,7 @@ class RobotConfig(Section):
     collision: CollisionConfig = CollisionConfig()
     angle: AngleConfig = AngleConfig()
     door: DoorConfig = DoorConfig()
+    state: StateConfig = StateConfig()
     motion: MotionConfig = MotionConfig()
     web: WebConfig = WebConfig()
     store: StoreConfig = StoreConfig()

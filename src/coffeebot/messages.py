@@ -189,6 +189,101 @@ class OperatorEvent(Message):
     source: str = "web"
 
 
+# --- perception and state -----------------------------------------------------------------
+
+Side = Literal["left", "right"]
+
+
+class AngleEstimate(Message):
+    """The robot's heading against the hallway, measured from one side's wall (or both).
+
+    ``angle_deg`` is the seed's "angle": robot heading minus the hallway direction it travels
+    along, positive counter-clockwise. ``correction_deg`` is what motion should turn: zero when
+    the angle is below the seed's 5 degrees. ``heading_deg`` is the same measurement as an
+    absolute heading in the floor plan's frame, which is what the state module fuses.
+    """
+
+    scan_seq: int
+    zone: str
+    side: Literal["left", "right", "both"]
+    angle_deg: float
+    correction_deg: float
+    heading_deg: float
+    confidence: float = Field(ge=0.0, le=1.0)
+    sigma_deg: float = Field(gt=0.0)
+    scans: int = Field(ge=1, description="scans averaged into this estimate")
+    wall_distance_mm: dict[Side, float] = {}
+    """Perpendicular distance from the body centre to each wall that was used."""
+
+
+class DoorEvent(Message):
+    """A door (or opening) seen by one side's sensors while passing it.
+
+    ``side`` is the hallway's side (the floor plan's left/right looking from the hallway's
+    start to its end), not the robot's.
+
+    ``x_mm``/``y_mm`` is where the sensors put the door centre; when the door was matched to
+    the floor plan, ``room`` names it, ``plan_x_mm``/``plan_y_mm`` is its planned centre and
+    ``along_correction_mm`` is how far the robot's along-hallway position was off (add it in
+    the direction of travel ``travel_heading_deg``).
+    """
+
+    scan_seq: int
+    side: Side
+    sensor: int
+    kind: Literal["door", "opening"]
+    floor: int
+    x_mm: float
+    y_mm: float
+    jump_mm: float
+    window: int = Field(ge=2, description="readings in the sliding window when it fired")
+    travel_heading_deg: float
+    room: str | None = None
+    plan_x_mm: float | None = None
+    plan_y_mm: float | None = None
+    along_correction_mm: float | None = None
+    arrived_at_target: bool = False
+
+
+class MoveInstruction(Message):
+    """What navigation wants the robot to do next, as the current state reports it."""
+
+    action: Literal["stop", "forward", "turn", "follow_wall", "wait"]
+    speed_mm_s: float = 0.0
+    heading_deg: float | None = None
+    target_room: str | None = None
+    detail: str = ""
+
+
+class PoseEstimate(Message):
+    """One fused pose in the floor plan's frame with its 1-sigma uncertainty."""
+
+    x_mm: float
+    y_mm: float
+    heading_deg: float
+    floor: int
+    sigma_x_mm: float = Field(ge=0.0)
+    sigma_y_mm: float = Field(ge=0.0)
+    sigma_heading_deg: float = Field(ge=0.0)
+    speed_mm_s: float = 0.0
+    yaw_rate_dps: float = 0.0
+    initialised: bool = True
+
+
+class CurrentState(Message):
+    """The seed's "current state": the freshest of everything other modules need at once."""
+
+    pose: PoseEstimate
+    angle_from_line_deg: float | None = None
+    """Heading against the hallway from the last angle estimate; None outside any zone."""
+    move_instruction: MoveInstruction | None = None
+    order_id: str | None = None
+    delivery_status: OrderStatus | None = None
+    last_door_room: str | None = None
+    sources: dict[str, float] = {}
+    """Age in seconds of each input the estimate used (uwb, odometry, angle, door)."""
+
+
 HEALTH = Topic("system/health", Health, Delivery.RELIABLE, queue_size=1024)
 RANGE_SCAN = Topic("tof/scan", RangeScan, Delivery.LATEST)
 UWB_FIX = Topic("uwb/fix", UwbFix, Delivery.LATEST)
@@ -199,6 +294,10 @@ COLLISION = Topic("safety/collision", CollisionStatus, Delivery.LATEST)
 ORDER_DISPATCH = Topic("orders/dispatch", OrderDispatch, Delivery.RELIABLE)
 DELIVERY_STATUS = Topic("delivery/status", DeliveryUpdate, Delivery.RELIABLE)
 OPERATOR_EVENT = Topic("operator/event", OperatorEvent, Delivery.RELIABLE)
+ANGLE = Topic("perception/angle", AngleEstimate, Delivery.LATEST)
+DOOR = Topic("perception/door", DoorEvent, Delivery.RELIABLE)
+MOVE_INSTRUCTION = Topic("nav/instruction", MoveInstruction, Delivery.LATEST)
+CURRENT_STATE = Topic("state/current", CurrentState, Delivery.LATEST)
 
 ALL_TOPICS: tuple[Topic, ...] = (
     HEALTH,
@@ -211,4 +310,8 @@ ALL_TOPICS: tuple[Topic, ...] = (
     ORDER_DISPATCH,
     DELIVERY_STATUS,
     OPERATOR_EVENT,
+    ANGLE,
+    DOOR,
+    MOVE_INSTRUCTION,
+    CURRENT_STATE,
 )

@@ -1,1 +1,1 @@
-"""Simulated devices that speak the real protocols, plugged in where a bus or port would be."""
+"""The simulated world and the simulated devices that speak the real protocols to it."""

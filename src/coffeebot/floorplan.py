@@ -1,0 +1,456 @@
+"""Floor plans: the building as the robot knows it, loaded from TOML.
+
+A floor plan is written the way one surveys a hallway with a tape measure: each floor has one
+main hallway given by its axis (start and end points in the floor frame) and width; doors and
+openings (side hallways) are placed by their distance along that axis and the side they are
+on. Free-form walls cover the rest (a tea room, an elevator lobby). The loader turns this into
+wall segments with heights, which the simulator ray-casts against and the SVG renderer draws.
+
+Frames: x, y in mm in the floor frame shared by all floors and the UWB anchors. Along the
+hallway, ``s`` is the distance from the axis start and ``d`` the lateral offset, positive to
+the left when looking from start to end.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import tomllib
+from collections.abc import Iterator, Sequence
+from functools import cached_property
+from pathlib import Path
+from typing import Any, Literal, NamedTuple
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from coffeebot.config import ConfigError
+
+Side = Literal["left", "right"]
+
+
+class FloorPlanError(ConfigError):
+    """A floor plan file that cannot be used, naming the file, the element and the problem.
+
+    A :class:`~coffeebot.config.ConfigError` (so a ``ValueError``): the CLI reports both alike.
+    """
+
+    def __init__(self, path: str | Path, element: str, problem: str) -> None:
+        self.path = str(path)
+        self.element = element
+        self.problem = problem
+        super().__init__(f"{self.path}: {element}: {problem}")
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+
+class Hallway(_Model):
+    """The main hallway of a floor: a straight axis and a width."""
+
+    start: tuple[float, float]
+    end: tuple[float, float]
+    width_mm: float = Field(1700.0, gt=0)
+    start_closed: bool = True
+    end_closed: bool = True
+
+    @property
+    def length_mm(self) -> float:
+        return math.dist(self.start, self.end)
+
+    @property
+    def heading_deg(self) -> float:
+        """Direction of travel from start to end, degrees CCW from +x."""
+        return math.degrees(math.atan2(self.end[1] - self.start[1], self.end[0] - self.start[0]))
+
+
+class Door(_Model):
+    """A door in a hallway wall, recessed ``recess_mm`` behind the wall line."""
+
+    id: str
+    room: str
+    side: Side
+    at_mm: float = Field(description="distance of the door centre along the hallway axis")
+    width_mm: float = Field(900.0, gt=0)
+    recess_mm: float = Field(100.0, ge=0)
+    height_mm: float = Field(2100.0, gt=0)
+    kind: Literal["office", "elevator", "tea_room", "other"] = "office"
+    open: bool = False
+
+    @model_validator(mode="before")
+    @classmethod
+    def _id_defaults_to_room(cls, data: Any) -> Any:
+        if isinstance(data, dict) and "id" not in data and "room" in data:
+            return {**data, "id": str(data["room"])}
+        return data
+
+    @property
+    def span(self) -> tuple[float, float]:
+        return (self.at_mm - self.width_mm / 2, self.at_mm + self.width_mm / 2)
+
+
+class Opening(_Model):
+    """A gap in a hallway wall: a side hallway, a stairwell, a lobby."""
+
+    id: str
+    side: Side
+    at_mm: float
+    width_mm: float = Field(1700.0, gt=0)
+    depth_mm: float = Field(3000.0, gt=0, description="how far its side walls run")
+    end: Literal["open", "wall"] = "open"
+    name: str = ""
+
+    @property
+    def span(self) -> tuple[float, float]:
+        return (self.at_mm - self.width_mm / 2, self.at_mm + self.width_mm / 2)
+
+
+class Wall(_Model):
+    """A free-form wall as a polyline of floor-frame points."""
+
+    id: str
+    points: list[tuple[float, float]] = Field(min_length=2)
+    height_mm: float | None = Field(None, gt=0)
+    closed: bool = False
+
+
+class AngleZone(_Model):
+    """A stretch of hallway where both walls are flat, so side sensors can measure heading."""
+
+    id: str
+    from_mm: float
+    to_mm: float
+
+    @model_validator(mode="after")
+    def _ordered(self) -> AngleZone:
+        if self.to_mm <= self.from_mm:
+            raise ValueError(f"to_mm ({self.to_mm}) must be greater than from_mm ({self.from_mm})")
+        return self
+
+
+class Anchor(_Model):
+    """A UWB anchor at a surveyed position."""
+
+    id: str
+    x_mm: float
+    y_mm: float
+    z_mm: float = 2400.0
+
+
+class WallSegment(NamedTuple):
+    """One straight piece of surface: what sensors see and what the robot can hit."""
+
+    element: str
+    x0: float
+    y0: float
+    x1: float
+    y1: float
+    z_bottom: float
+    z_top: float
+
+
+class Floor(_Model):
+    level: int
+    name: str = ""
+    wall_height_mm: float = Field(2700.0, gt=0)
+    hallway: Hallway
+    doors: list[Door] = []
+    openings: list[Opening] = []
+    walls: list[Wall] = []
+    angle_zones: list[AngleZone] = []
+    anchors: list[Anchor] = []
+
+    # --- hallway frame ---------------------------------------------------------------------
+
+    @cached_property
+    def _axis(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Origin, unit direction and unit left normal of the hallway axis."""
+        origin = np.array(self.hallway.start, dtype=float)
+        direction = np.array(self.hallway.end, dtype=float) - origin
+        direction /= np.linalg.norm(direction)
+        return origin, direction, np.array([-direction[1], direction[0]])
+
+    def to_hallway(self, x_mm: float, y_mm: float) -> tuple[float, float]:
+        """Floor-frame point to (s along the axis, d lateral, left positive)."""
+        origin, u, n = self._axis
+        rel = np.array([x_mm, y_mm]) - origin
+        return float(rel @ u), float(rel @ n)
+
+    def from_hallway(self, s_mm: float, d_mm: float) -> tuple[float, float]:
+        """(s, d) in the hallway frame to a floor-frame point."""
+        origin, u, n = self._axis
+        p = origin + s_mm * u + d_mm * n
+        return float(p[0]), float(p[1])
+
+    # --- queries ---------------------------------------------------------------------------
+
+    def features(self, side: Side | None = None) -> list[Door | Opening]:
+        """Doors and openings, optionally on one side, ordered along the hallway."""
+        items: list[Door | Opening] = [*self.doors, *self.openings]
+        return sorted((f for f in items if side in (None, f.side)), key=lambda f: f.at_mm)
+
+    def feature_at(self, s_mm: float, side: Side, margin_mm: float = 0.0) -> Door | Opening | None:
+        """The door or opening whose span (widened by ``margin_mm``) covers ``s`` on a side."""
+        for feature in self.features(side):
+            lo, hi = feature.span
+            if lo - margin_mm <= s_mm <= hi + margin_mm:
+                return feature
+        return None
+
+    def nearest_door(self, s_mm: float, side: Side | None = None) -> Door | None:
+        """The door whose centre is closest to ``s`` along the hallway."""
+        doors = [d for d in self.doors if side in (None, d.side)]
+        return min(doors, key=lambda d: abs(d.at_mm - s_mm), default=None)
+
+    def angle_zone_at(self, x_mm: float, y_mm: float) -> AngleZone | None:
+        """The angle zone containing a floor-frame point, if any."""
+        s, d = self.to_hallway(x_mm, y_mm)
+        if abs(d) > self.hallway.width_mm / 2:
+            return None
+        return next((z for z in self.angle_zones if z.from_mm <= s <= z.to_mm), None)
+
+    def door(self, door_id: str) -> Door:
+        for door in self.doors:
+            if door.id == door_id:
+                return door
+        raise KeyError(f"floor {self.level} has no door {door_id!r}")
+
+    @property
+    def elevator(self) -> Door | None:
+        return next((d for d in self.doors if d.kind == "elevator"), None)
+
+    def walls_near(self, x_mm: float, y_mm: float, radius_mm: float) -> list[WallSegment]:
+        """Wall segments passing within ``radius_mm`` of a point."""
+        a = self.segment_array
+        px, py = a[:, 0], a[:, 1]
+        ex, ey = a[:, 2] - px, a[:, 3] - py
+        length2 = np.maximum(ex * ex + ey * ey, 1e-9)
+        t = np.clip(((x_mm - px) * ex + (y_mm - py) * ey) / length2, 0.0, 1.0)
+        dist = np.hypot(px + t * ex - x_mm, py + t * ey - y_mm)
+        return [self.segments[i] for i in np.flatnonzero(dist <= radius_mm)]
+
+    # --- geometry --------------------------------------------------------------------------
+
+    @cached_property
+    def segments(self) -> tuple[WallSegment, ...]:
+        """Every wall surface of the floor, generated from the survey description."""
+        return tuple(self._generate_segments())
+
+    @cached_property
+    def segment_array(self) -> np.ndarray:
+        """Segments as an (N, 6) float array: x0, y0, x1, y1, z_bottom, z_top."""
+        return np.array([s[1:] for s in self.segments], dtype=float).reshape(-1, 6)
+
+    def _generate_segments(self) -> Iterator[WallSegment]:
+        h = self.wall_height_mm
+        half = self.hallway.width_mm / 2
+        length = self.hallway.length_mm
+
+        def seg(element: str, a: tuple[float, float], b: tuple[float, float], top: float = h):
+            return WallSegment(element, *self.from_hallway(*a), *self.from_hallway(*b), 0.0, top)
+
+        for side, sign in (("left", 1.0), ("right", -1.0)):
+            wall_d = sign * half
+            cursor = 0.0
+            for feature in self.features(side):  # type: ignore[arg-type]
+                lo, hi = feature.span
+                if lo > cursor:
+                    yield seg(f"hallway {side} wall", (cursor, wall_d), (lo, wall_d))
+                cursor = max(cursor, hi)
+                if isinstance(feature, Door):
+                    back = wall_d + sign * feature.recess_mm
+                    element = f"door {feature.id}"
+                    if feature.recess_mm > 0:
+                        yield seg(f"{element} jamb", (lo, wall_d), (lo, back))
+                        yield seg(f"{element} jamb", (hi, wall_d), (hi, back))
+                    if not feature.open:
+                        yield seg(element, (lo, back), (hi, back), feature.height_mm)
+                else:
+                    far = wall_d + sign * feature.depth_mm
+                    element = f"opening {feature.id}"
+                    yield seg(element, (lo, wall_d), (lo, far))
+                    yield seg(element, (hi, wall_d), (hi, far))
+                    if feature.end == "wall":
+                        yield seg(element, (lo, far), (hi, far))
+            if cursor < length:
+                yield seg(f"hallway {side} wall", (cursor, wall_d), (length, wall_d))
+        if self.hallway.start_closed:
+            yield seg("hallway start wall", (0.0, -half), (0.0, half))
+        if self.hallway.end_closed:
+            yield seg("hallway end wall", (length, -half), (length, half))
+        for wall in self.walls:
+            points = [*wall.points, wall.points[0]] if wall.closed else wall.points
+            top = wall.height_mm or h
+            for a, b in itertools.pairwise(points):
+                yield WallSegment(f"wall {wall.id}", a[0], a[1], b[0], b[1], 0.0, top)
+
+
+class RoomLocation(NamedTuple):
+    floor: Floor
+    door: Door
+
+
+class FloorPlan(_Model):
+    name: str = ""
+    note: str = ""
+    floors: list[Floor] = Field(min_length=1)
+
+    def floor(self, level: int) -> Floor:
+        for floor in self.floors:
+            if floor.level == level:
+                return floor
+        raise KeyError(f"no floor {level}; floors are {[f.level for f in self.floors]}")
+
+    def find_room(self, room: str) -> RoomLocation:
+        """The floor and door of a room, by its name ("205", "Tea room")."""
+        for floor in self.floors:
+            for door in floor.doors:
+                if door.room == room:
+                    return RoomLocation(floor, door)
+        raise KeyError(f"no room {room!r} in floor plan {self.name!r}")
+
+    @property
+    def tea_room(self) -> RoomLocation:
+        for floor in self.floors:
+            for door in floor.doors:
+                if door.kind == "tea_room":
+                    return RoomLocation(floor, door)
+        raise KeyError("floor plan has no tea room")
+
+    @property
+    def rooms(self) -> list[str]:
+        """Rooms a delivery can go to: every office door, in floor then hallway order."""
+        return [
+            d.room
+            for f in self.floors
+            for d in sorted(f.doors, key=lambda d: d.at_mm)
+            if d.kind == "office"
+        ]
+
+
+# --- loading and validation -----------------------------------------------------------------
+
+
+def load_floorplan(path: str | Path) -> FloorPlan:
+    """Read and validate a floor plan TOML file; every problem raises :class:`FloorPlanError`."""
+    path = Path(path)
+    try:
+        raw = tomllib.loads(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise FloorPlanError(path, "file", exc.strerror or str(exc)) from exc
+    except tomllib.TOMLDecodeError as exc:
+        raise FloorPlanError(path, "TOML syntax", str(exc)) from exc
+    return parse_floorplan(raw, path)
+
+
+def parse_floorplan(raw: dict[str, Any], path: str | Path = "<floor plan>") -> FloorPlan:
+    """Validate an already-parsed floor plan document."""
+    try:
+        plan = FloorPlan.model_validate(raw)
+    except ValidationError as exc:
+        error = exc.errors()[0]
+        element, field = _describe_location(raw, error["loc"])
+        problem = f"{field}: {error['msg']}" if field else error["msg"]
+        raise FloorPlanError(path, element, problem) from None
+    _check_consistency(plan, path)
+    return plan
+
+
+_ELEMENT_NAMES = {
+    "floors": "floor",
+    "doors": "door",
+    "openings": "opening",
+    "walls": "wall",
+    "angle_zones": "angle zone",
+    "anchors": "anchor",
+}
+
+
+def _describe_location(raw: Any, loc: Sequence[int | str]) -> tuple[str, str]:
+    """Turn a pydantic error location into ("floor 2 / door 205", "width_mm")."""
+    names: list[str] = []
+    node = raw
+    fields: list[str] = []
+    i = 0
+    while i < len(loc):
+        key = loc[i]
+        if key in _ELEMENT_NAMES and i + 1 < len(loc) and isinstance(loc[i + 1], int):
+            index = int(loc[i + 1])
+            item = node.get(key, [])[index] if isinstance(node, dict) else None
+            ident = None
+            if isinstance(item, dict):
+                ident = item.get("level") if key == "floors" else item.get("id", item.get("room"))
+            label = ident if ident is not None else f"#{index + 1}"
+            names.append(f"{_ELEMENT_NAMES[str(key)]} {label}")
+            node = item
+            fields = []
+            i += 2
+            continue
+        fields.append(str(key))
+        node = node.get(key) if isinstance(node, dict) else None
+        i += 1
+    return (" / ".join(names) or "floor plan"), ".".join(fields)
+
+
+def _check_consistency(plan: FloorPlan, path: str | Path) -> None:
+    """Checks that span elements: unique ids, features inside the hallway and not overlapping."""
+    levels = [f.level for f in plan.floors]
+    for level in levels:
+        if levels.count(level) > 1:
+            raise FloorPlanError(path, f"floor {level}", "level appears more than once")
+    for floor in plan.floors:
+        where = f"floor {floor.level}"
+        if floor.hallway.length_mm <= 0:
+            raise FloorPlanError(path, f"{where} / hallway", "start and end are the same point")
+        groups: list[tuple[str, Sequence[Door | Opening | Wall | AngleZone | Anchor]]] = [
+            ("door", floor.doors),
+            ("opening", floor.openings),
+            ("wall", floor.walls),
+            ("angle zone", floor.angle_zones),
+            ("anchor", floor.anchors),
+        ]
+        for kind, items in groups:
+            seen: set[str] = set()
+            for item in items:
+                if item.id in seen:
+                    raise FloorPlanError(path, f"{where} / {kind} {item.id}", "duplicate id")
+                seen.add(item.id)
+        length = floor.hallway.length_mm
+        for side in ("left", "right"):
+            previous: Door | Opening | None = None
+            for feature in floor.features(side):  # type: ignore[arg-type]
+                kind = "door" if isinstance(feature, Door) else "opening"
+                lo, hi = feature.span
+                if lo < 0 or hi > length:
+                    raise FloorPlanError(
+                        path,
+                        f"{where} / {kind} {feature.id}",
+                        f"spans {lo:.0f}..{hi:.0f} mm, outside the hallway (0..{length:.0f} mm)",
+                    )
+                if previous is not None and lo < previous.span[1]:
+                    raise FloorPlanError(
+                        path,
+                        f"{where} / {kind} {feature.id}",
+                        f"overlaps {previous.id} on the {side} side",
+                    )
+                previous = feature
+        for zone in floor.angle_zones:
+            if zone.from_mm < 0 or zone.to_mm > length:
+                raise FloorPlanError(
+                    path, f"{where} / angle zone {zone.id}", "lies outside the hallway"
+                )
+        elevators = [d for d in floor.doors if d.kind == "elevator"]
+        if len(elevators) > 1:
+            raise FloorPlanError(path, f"{where} / door {elevators[1].id}", "second elevator door")
+        if len(plan.floors) > 1 and not elevators:
+            raise FloorPlanError(path, where, "no elevator door in a building of several floors")
+    tea_rooms = [(f, d) for f in plan.floors for d in f.doors if d.kind == "tea_room"]
+    if len(tea_rooms) != 1:
+        raise FloorPlanError(
+            path, "floor plan", f"needs exactly one door of kind 'tea_room', found {len(tea_rooms)}"
+        )
+    rooms = [d.room for f in plan.floors for d in f.doors if d.kind != "elevator"]
+    for room in rooms:
+        if rooms.count(room) > 1:
+            raise FloorPlanError(path, f"room {room}", "has more than one door")

@@ -1,0 +1,135 @@
+"""Floor plans drawn as SVG: walls, doors with their rooms, openings, angle zones, anchors.
+
+The drawing is plain SVG with one ``<g>`` per floor and CSS classes on every element, so the
+web map can restyle it and draw the robot on top. Floor-frame y points up; SVG y points down,
+so points are flipped here and text stays readable.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from xml.sax.saxutils import escape
+
+from coffeebot.floorplan import Door, Floor, FloorPlan, FloorPlanError, load_floorplan
+
+_MARGIN_MM = 1500.0
+_GAP_MM = 2000.0
+_STYLE = """
+.hallway { fill: #f4f1ea; }
+.zone { fill: #e53935; fill-opacity: 0.25; }
+.axis { stroke: #9e9e9e; stroke-dasharray: 400 300; stroke-width: 30; }
+.wall { stroke: #263238; stroke-width: 60; stroke-linecap: round; }
+.door { stroke: #8d6e63; stroke-width: 80; }
+.anchor { fill: #1e88e5; }
+text { font-family: sans-serif; font-size: 380px; fill: #37474f; text-anchor: middle; }
+text.title { font-size: 700px; text-anchor: start; font-weight: bold; }
+text.small { font-size: 260px; fill: #1e88e5; }
+"""
+
+
+class _Canvas:
+    """Maps one floor's frame into the picture: y flipped, floors stacked downwards."""
+
+    def __init__(self, floor: Floor, top: float) -> None:
+        a = floor.segment_array
+        xs = [*a[:, 0], *a[:, 2], *(an.x_mm for an in floor.anchors)]
+        ys = [*a[:, 1], *a[:, 3], *(an.y_mm for an in floor.anchors)]
+        self.min_x, self.max_y = min(xs) - _MARGIN_MM, max(ys) + _MARGIN_MM
+        self.width = max(xs) + _MARGIN_MM - self.min_x
+        self.height = self.max_y - (min(ys) - _MARGIN_MM)
+        self.top = top
+
+    def point(self, x: float, y: float) -> tuple[float, float]:
+        return x - self.min_x, self.top + self.max_y - y
+
+    def points(self, pts: Sequence[tuple[float, float]]) -> str:
+        return " ".join("{:.0f},{:.0f}".format(*self.point(x, y)) for x, y in pts)
+
+
+def _floor_svg(floor: Floor, canvas: _Canvas) -> list[str]:
+    half = floor.hallway.width_mm / 2
+    length = floor.hallway.length_mm
+    out = [f'<g class="floor" id="floor-{floor.level}">']
+    corners = [(0, -half), (length, -half), (length, half), (0, half)]
+    hall = [floor.from_hallway(s, d) for s, d in corners]
+    out.append(f'<polygon class="hallway" points="{canvas.points(hall)}"/>')
+    for zone in floor.angle_zones:
+        box = [floor.from_hallway(s, d) for s in (zone.from_mm, zone.to_mm) for d in (-half, half)]
+        box = [box[0], box[2], box[3], box[1]]
+        out.append(
+            f'<polygon class="zone" id="zone-{escape(zone.id)}" points="{canvas.points(box)}">'
+            f"<title>angle zone {escape(zone.id)}</title></polygon>"
+        )
+    axis = [floor.from_hallway(0, 0), floor.from_hallway(length, 0)]
+    out.append(f'<polyline class="axis" points="{canvas.points(axis)}"/>')
+    doors = {f"door {d.id}" for d in floor.doors}
+    for seg in floor.segments:
+        cls = "door" if seg.element in doors else "wall"
+        (x0, y0), (x1, y1) = canvas.point(seg.x0, seg.y0), canvas.point(seg.x1, seg.y1)
+        out.append(
+            f'<line class="{cls}" x1="{x0:.0f}" y1="{y0:.0f}" x2="{x1:.0f}" y2="{y1:.0f}">'
+            f"<title>{escape(seg.element)}</title></line>"
+        )
+    for feature in floor.features():
+        sign = 1.0 if feature.side == "left" else -1.0
+        label = feature.room if isinstance(feature, Door) else feature.name or feature.id
+        lx, ly = canvas.point(*floor.from_hallway(feature.at_mm, sign * (half + 700)))
+        out.append(f'<text x="{lx:.0f}" y="{ly + 130:.0f}">{escape(label)}</text>')
+    for anchor in floor.anchors:
+        ax, ay = canvas.point(anchor.x_mm, anchor.y_mm)
+        out.append(
+            f'<circle class="anchor" cx="{ax:.0f}" cy="{ay:.0f}" r="120">'
+            f"<title>UWB anchor {escape(anchor.id)}</title></circle>"
+            f'<text class="small" x="{ax:.0f}" y="{ay - 200:.0f}">{escape(anchor.id)}</text>'
+        )
+    title = escape(floor.name or f"Floor {floor.level}")
+    out.append(f'<text class="title" x="200" y="{canvas.top + 800:.0f}">{title}</text>')
+    out.append("</g>")
+    return out
+
+
+def render_svg(plan: FloorPlan, levels: Sequence[int] | None = None) -> str:
+    """The floors (all, or those in ``levels``) stacked top to bottom, in mm units."""
+    floors = [plan.floor(level) for level in levels] if levels else plan.floors
+    body: list[str] = []
+    top, width = 0.0, 0.0
+    for floor in floors:
+        canvas = _Canvas(floor, top)
+        body += _floor_svg(floor, canvas)
+        top += canvas.height + _GAP_MM
+        width = max(width, canvas.width)
+    height = top - _GAP_MM
+    return "\n".join(
+        [
+            f'<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 {width:.0f} {height:.0f}" '
+            f'width="{width / 20:.0f}" height="{height / 20:.0f}">',
+            f"<title>{escape(plan.name or 'floor plan')}</title>",
+            f"<style>{_STYLE}</style>",
+            *body,
+            "</svg>",
+        ]
+    )
+
+
+def add_render_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("file", type=Path, help="floor plan TOML")
+    parser.add_argument("-o", "--output", type=Path, required=True, help="SVG file to write")
+    parser.add_argument("--floor", type=int, action="append", help="only this floor (repeatable)")
+
+
+def render_command(args: argparse.Namespace) -> int:
+    """``coffeebot floorplan render FILE -o OUT.svg``: exit status 2 on a bad floor plan."""
+    try:
+        plan = load_floorplan(args.file)
+        svg = render_svg(plan, args.floor)
+    except FloorPlanError as exc:
+        print(f"coffeebot: {exc}", file=sys.stderr)
+        return 2
+    except KeyError as exc:
+        print(f"coffeebot: {args.file}: {exc.args[0]}", file=sys.stderr)
+        return 2
+    args.output.write_text(svg, encoding="utf-8")
+    return 0

@@ -1,0 +1,51 @@
+"""Collision module: every scan becomes a stop/slow/go verdict in the same loop turn."""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+from coffeebot.config import RobotConfig
+from coffeebot.messages import COLLISION, ODOMETRY, RANGE_SCAN
+from coffeebot.modules.base import Module, ModuleContext
+from coffeebot.perception.collision import CollisionMonitor
+
+ODOMETRY_STALE_S = 0.5
+"""Odometry older than this is no speed: the monitor assumes the worst."""
+
+
+class CollisionModule(Module):
+    """Wraps :class:`CollisionMonitor`; speed comes from the latest odometry."""
+
+    name = "collision"
+    inputs = (RANGE_SCAN, ODOMETRY)
+    outputs = (COLLISION,)
+    critical: ClassVar[bool] = True
+
+    def __init__(self, config: RobotConfig) -> None:
+        self.config = config
+        self.monitor = self._new_monitor()
+
+    def _new_monitor(self) -> CollisionMonitor:
+        cfg = self.config
+        return CollisionMonitor(
+            cfg.tof.sensors,
+            cfg.collision,
+            max_speed_mm_s=cfg.collision.unknown_speed_mm_s or cfg.motor.max_speed_mm_s,
+            max_range_mm=cfg.tof.max_range_mm,
+        )
+
+    def _speed(self, ctx: ModuleContext) -> float | None:
+        last = ctx.board.latest(ODOMETRY)
+        age = ctx.board.age(ODOMETRY)
+        if last is None or age is None or age > ODOMETRY_STALE_S:
+            return None
+        return (last.msg.left_mm_s + last.msg.right_mm_s) / 2.0
+
+    async def run(self, ctx: ModuleContext) -> None:
+        # A restart forgets everything: back to "stop" until every face is clear again.
+        self.monitor = self._new_monitor()
+        with ctx.board.subscribe(RANGE_SCAN) as scans:
+            async for envelope in scans:
+                # No await between reading the scan and publishing the verdict.
+                status = self.monitor.update(envelope.msg, self._speed(ctx), envelope.seq)
+                ctx.board.publish(COLLISION, status)

@@ -1,0 +1,1 @@
+"""Perception algorithms: pure, clock-free classes the board modules wrap."""

@@ -1,0 +1,165 @@
+"""The collision verdict for one scan: seed 000's "private sphere", made speed-aware.
+
+Seed rules: start in "stop"; "go" only once every face is clear; front radius 200 mm, side
+radius 50 mm. Beyond the seed (in the spirit of nav2's collision monitor): the front stop
+distance grows with speed as ``v*t + v^2/(2a) + margin`` and never drops below the seed's
+radius; a slowdown zone lies in front of it; leaving a zone needs ``hysteresis_mm`` more
+clearance than entering it, so a reading jittering on a boundary does not chatter. A sensor
+that is unhealthy, reports a hardware/bus failure, or has had no usable reading for
+``stale_cycles`` scans makes the verdict "stop" (driving blind is never "go"); a sensor that
+sees nothing within its range is clear.
+
+Side readings measure the gap from the body directly (the sensors sit on the body's sides),
+and so do front readings, so the radii apply to the raw distances.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+from coffeebot.config import CollisionConfig, TofSensorConfig
+from coffeebot.messages import CollisionStatus, RangeReading, RangeScan, ReadingStatus, SafetyState
+
+NOTHING_IN_RANGE = frozenset({ReadingStatus.NO_TARGET, ReadingStatus.OUT_OF_BOUNDS})
+"""Statuses meaning "no target within range": the face is clear, not blind."""
+
+FAILED = frozenset({ReadingStatus.HARDWARE_FAIL, ReadingStatus.BUS_ERROR})
+"""Statuses meaning the sensor itself is broken: stop at once, do not wait for staleness."""
+
+_RANK = {SafetyState.GO: 0, SafetyState.SLOW: 1, SafetyState.STOP: 2}
+
+
+@dataclass(frozen=True)
+class _Finding:
+    """What one sensor says this scan, before the verdict is combined across sensors."""
+
+    state: SafetyState
+    sensor: TofSensorConfig
+    distance_mm: int | None
+    reason: str
+    speed_limit_mm_s: float
+
+
+def stop_distance_mm(cfg: CollisionConfig, speed_mm_s: float) -> float:
+    """Distance to stop from ``speed_mm_s`` towards the obstacle; never below the seed radius."""
+    v = max(0.0, speed_mm_s)
+    kinematic = v * cfg.reaction_latency_s + v * v / (2.0 * cfg.braking_mm_s2) + cfg.margin_mm
+    return max(cfg.front_radius_mm, kinematic)
+
+
+def safe_speed_mm_s(cfg: CollisionConfig, room_mm: float) -> float:
+    """The highest speed that can still be braked to zero within ``room_mm``."""
+    if room_mm <= 0:
+        return 0.0
+    room = room_mm
+    a, t = cfg.braking_mm_s2, cfg.reaction_latency_s
+    return a * (-t + math.sqrt(t * t + 2.0 * room / a))
+
+
+class CollisionMonitor:
+    """Turns each :class:`RangeScan` into a :class:`CollisionStatus`, synchronously.
+
+    ``update`` does no I/O and never awaits, so the module can publish the verdict in the same
+    event-loop turn in which the scan arrived.
+    """
+
+    def __init__(
+        self,
+        sensors: Iterable[TofSensorConfig],
+        cfg: CollisionConfig,
+        max_speed_mm_s: float,
+        max_range_mm: int = 4000,
+    ) -> None:
+        self.cfg = cfg
+        self.sensors = {s.id: s for s in sensors}
+        self.max_speed_mm_s = max_speed_mm_s
+        self.max_range_mm = max_range_mm
+        self.state = SafetyState.STOP
+        """Seed rule: the robot starts in "stop" and only goes once every face is clear."""
+        self._missed = dict.fromkeys(self.sensors, cfg.stale_cycles)
+        """Consecutive scans without a usable reading; starts stale so the first scan counts."""
+
+    def _radius(self, face: str, speed_mm_s: float) -> float:
+        if face == "front":
+            return stop_distance_mm(self.cfg, speed_mm_s)
+        if face == "rear":
+            return stop_distance_mm(self.cfg, -speed_mm_s)
+        return self.cfg.side_radius_mm
+
+    def _assess(
+        self, sensor: TofSensorConfig, reading: RangeReading | None, speed: float
+    ) -> _Finding:
+        cfg = self.cfg
+        if reading is not None and (not reading.healthy or reading.status in FAILED):
+            self._missed[sensor.id] = cfg.stale_cycles
+            why = "unhealthy" if not reading.healthy else reading.status.value
+            return _Finding(SafetyState.STOP, sensor, None, f"sensor {sensor.id} {why}", 0.0)
+        distance = None
+        if reading is not None and reading.status is ReadingStatus.VALID:
+            distance = reading.distance_mm
+        nothing = reading is not None and reading.status in NOTHING_IN_RANGE
+        usable = distance is not None or nothing
+        self._missed[sensor.id] = 0 if usable else self._missed[sensor.id] + 1
+        if self._missed[sensor.id] >= cfg.stale_cycles:
+            return _Finding(
+                SafetyState.STOP,
+                sensor,
+                None,
+                f"sensor {sensor.id} stale: no valid reading for {self._missed[sensor.id]} scans",
+                0.0,
+            )
+        if distance is None or distance > self.max_range_mm:
+            return _Finding(SafetyState.GO, sensor, None, "clear", self.max_speed_mm_s)
+        # Leaving a zone needs extra clearance: the thresholds grow while we are inside it.
+        stop_at = self._radius(sensor.face, speed)
+        slow_at = stop_at + (cfg.slowdown_extra_mm if sensor.face in ("front", "rear") else 0.0)
+        if self.state is SafetyState.STOP:
+            stop_at += cfg.hysteresis_mm
+        if self.state is not SafetyState.GO:
+            slow_at += cfg.hysteresis_mm
+        if distance < stop_at:
+            reason = f"{sensor.face} obstacle at {distance} mm, stop distance {stop_at:.0f} mm"
+            return _Finding(SafetyState.STOP, sensor, distance, reason, 0.0)
+        if distance < slow_at:
+            # Slow enough to stop before the seed's radius, so the robot creeps up to it.
+            room = distance - cfg.front_radius_mm - cfg.hysteresis_mm
+            limit = max(cfg.min_slow_speed_mm_s, safe_speed_mm_s(cfg, room))
+            reason = f"{sensor.face} obstacle at {distance} mm, slowing"
+            return _Finding(
+                SafetyState.SLOW, sensor, distance, reason, min(limit, self.max_speed_mm_s)
+            )
+        return _Finding(SafetyState.GO, sensor, distance, "clear", self.max_speed_mm_s)
+
+    def update(self, scan: RangeScan, speed_mm_s: float | None, scan_seq: int) -> CollisionStatus:
+        """The verdict for ``scan`` at forward speed ``speed_mm_s`` (None: unknown, assume max)."""
+        speed = self.max_speed_mm_s if speed_mm_s is None else speed_mm_s
+        readings = {r.sensor: r for r in scan.readings}
+        findings = [self._assess(s, readings.get(s.id), speed) for s in self.sensors.values()]
+        worst = max(
+            findings,
+            key=lambda f: (
+                _RANK[f.state],
+                -f.speed_limit_mm_s,
+                -(f.distance_mm if f.distance_mm is not None else math.inf),
+            ),
+        )
+        previous, self.state = self.state, worst.state
+        if worst.state is SafetyState.GO:
+            reason = "clear again" if previous is not SafetyState.GO else "clear"
+            return CollisionStatus(
+                state=SafetyState.GO,
+                scan_seq=scan_seq,
+                reason=reason,
+                speed_limit_mm_s=self.max_speed_mm_s,
+            )
+        return CollisionStatus(
+            state=worst.state,
+            scan_seq=scan_seq,
+            face=worst.sensor.face,
+            sensor=worst.sensor.id,
+            distance_mm=worst.distance_mm,
+            reason=worst.reason,
+            speed_limit_mm_s=worst.speed_limit_mm_s,
+        )

@@ -1,0 +1,142 @@
+"""The seed's "current state": feeds every source into a :class:`PoseFusion`, reports it.
+
+The board computes nothing (seed 000); this is where messages become one estimate. Each
+``on_*`` method takes one message and returns whether it changed the estimate, so the
+module publishes only when there is something new.
+"""
+
+from __future__ import annotations
+
+from coffeebot.config import MotorConfig, StateConfig
+from coffeebot.floorplan import FloorPlan
+from coffeebot.messages import (
+    AngleEstimate,
+    CurrentState,
+    DeliveryUpdate,
+    DoorEvent,
+    MoveInstruction,
+    Odometry,
+    OrderDispatch,
+    PoseEstimate,
+    UwbFix,
+)
+from coffeebot.perception.fusion import EkfPoseFusion, Odometer, OdometryStep, PoseFusion
+from coffeebot.perception.geometry import TravelFrame
+
+UWB_MIN_QUALITY = 10
+
+
+class StateEstimator:
+    """Position, heading, floor and the rest of the seed's state, always the freshest."""
+
+    def __init__(
+        self,
+        plan: FloorPlan,
+        motor: MotorConfig,
+        cfg: StateConfig,
+        fusion: PoseFusion | None = None,
+    ) -> None:
+        self.plan = plan
+        self.cfg = cfg
+        self.odometer = Odometer(motor, cfg)
+        self.fusion: PoseFusion = fusion or EkfPoseFusion(cfg)
+        self.floor = cfg.initial_floor
+        self._anchor_floor = {a.id: f.level for f in plan.floors for a in f.anchors}
+        self._last_step = OdometryStep(0.0, 0.0, 0.0)
+        self.angle_from_line_deg: float | None = None
+        self.move_instruction: MoveInstruction | None = None
+        self.order_id: str | None = None
+        self.delivery_status: DeliveryUpdate | None = None
+        self.last_door_room: str | None = None
+        self.stamps: dict[str, float] = {}
+
+    def place(self, x_mm: float, y_mm: float, heading_deg: float, floor: int) -> None:
+        """A known start (the dock in the tea room) or a known arrival (out of the elevator)."""
+        self.floor = floor
+        self.fusion.reset(x_mm, y_mm, heading_deg, 50.0, 5.0)
+
+    def on_odometry(self, odo: Odometry, now: float) -> bool:
+        step = self.odometer.step(odo)
+        if step is None:
+            return False
+        self._last_step = step
+        self.stamps["odometry"] = now
+        if self.fusion.initialised:
+            self.fusion.predict(step)
+        return True
+
+    def on_uwb(self, fix: UwbFix, now: float) -> bool:
+        if fix.quality < UWB_MIN_QUALITY:
+            return False
+        floors = {self._anchor_floor.get(a.anchor_id) for a in fix.anchors} - {None}
+        if len(floors) == 1:
+            self.floor = floors.pop()  # type: ignore[assignment]
+        sigma = self.cfg.uwb_sigma_mm * max(1.0, 50.0 / fix.quality)
+        self.stamps["uwb"] = now
+        return self.fusion.update_position(fix.x_mm, fix.y_mm, sigma)
+
+    def on_angle(self, angle: AngleEstimate, now: float) -> bool:
+        self.angle_from_line_deg = angle.angle_deg
+        self.stamps["angle"] = now
+        used = self.fusion.update_heading(angle.heading_deg, angle.sigma_deg)
+        # Each wall distance fixes the position across the hallway.
+        floor = self.plan.floor(self.floor)
+        x, y, heading = self.fusion.pose()
+        frame = TravelFrame.for_heading(floor, heading)
+        half = floor.hallway.width_mm / 2.0
+        lateral = frame.lateral(x, y)
+        for side, wall in angle.wall_distance_mm.items():
+            measured = half - wall if side == "left" else wall - half
+            left_of_travel = frame.direction_deg + 90.0
+            used |= self.fusion.update_offset(
+                left_of_travel, measured - lateral, self.cfg.wall_sigma_mm
+            )
+        return used
+
+    def on_door(self, door: DoorEvent, now: float) -> bool:
+        if door.room is not None:
+            self.last_door_room = door.room
+        self.stamps["door"] = now
+        if door.along_correction_mm is None:
+            return False
+        return self.fusion.update_offset(
+            door.travel_heading_deg, door.along_correction_mm, self.cfg.door_sigma_mm
+        )
+
+    def on_instruction(self, instruction: MoveInstruction) -> None:
+        self.move_instruction = instruction
+
+    def on_dispatch(self, dispatch: OrderDispatch) -> None:
+        self.order_id = dispatch.order_id
+        self.delivery_status = None
+
+    def on_delivery(self, update: DeliveryUpdate) -> None:
+        if update.order_id == self.order_id:
+            self.delivery_status = update
+
+    def pose(self) -> PoseEstimate:
+        x, y, heading = self.fusion.pose()
+        sx, sy, sh = self.fusion.sigmas()
+        return PoseEstimate(
+            x_mm=x,
+            y_mm=y,
+            heading_deg=heading,
+            floor=self.floor,
+            sigma_x_mm=sx,
+            sigma_y_mm=sy,
+            sigma_heading_deg=sh,
+            speed_mm_s=self._last_step.speed_mm_s,
+            yaw_rate_dps=self._last_step.yaw_rate_dps,
+            initialised=self.fusion.initialised,
+        )
+
+    def current(self, now: float) -> CurrentState:
+        return CurrentState(
+            pose=self.pose(),
+            angle_from_line_deg=self.angle_from_line_deg,
+            move_instruction=self.move_instruction,
+            order_id=self.order_id,
+            delivery_status=None if self.delivery_status is None else self.delivery_status.status,
+            last_door_room=self.last_door_room,
+            sources={name: max(0.0, now - t) for name, t in self.stamps.items()},
+        )

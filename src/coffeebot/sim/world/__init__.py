@@ -1,0 +1,20 @@
+"""The simulated building and robot: geometry with heights, ToF cones, drive physics."""
+
+from coffeebot.sim.world.geometry import Surfaces
+from coffeebot.sim.world.obstacles import ObstacleSpec
+from coffeebot.sim.world.robot import Pose, RobotSpec
+from coffeebot.sim.world.tof import SensorMount, ToFModel, ToFReading
+from coffeebot.sim.world.world import Collision, UwbModel, World
+
+__all__ = [
+    "Collision",
+    "ObstacleSpec",
+    "Pose",
+    "RobotSpec",
+    "SensorMount",
+    "Surfaces",
+    "ToFModel",
+    "ToFReading",
+    "UwbModel",
+    "World",
+]

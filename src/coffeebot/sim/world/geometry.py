@@ -1,0 +1,176 @@
+"""Surfaces as flat numpy arrays, and the two vectorised queries on them: rays and footprints.
+
+Everything a sensor can see or the robot can hit is a vertical surface with a height range:
+a straight segment (walls, door leaves, box sides) or a vertical cylinder (poles, legs, bars).
+Horizontal faces (floor, shelf tops, seat undersides) are not modelled: at the sensors'
+grazing angles they return little light, and leaving them out is what lets a shelf just
+below sensor height vanish from the cone at close range, as it did in the seed's experiment.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+_EPS = 1e-6
+
+
+@dataclass(frozen=True)
+class Surfaces:
+    """Segments (N, 6: x0 y0 x1 y1 z_bottom z_top) and cylinders (M, 5: cx cy r z_bottom
+    z_top), each row named by the element it belongs to (for collision reports)."""
+
+    segments: np.ndarray
+    segment_ids: tuple[str, ...]
+    cylinders: np.ndarray
+    cylinder_ids: tuple[str, ...]
+
+    @classmethod
+    def empty(cls) -> Surfaces:
+        return cls(np.zeros((0, 6)), (), np.zeros((0, 5)), ())
+
+    def __add__(self, other: Surfaces) -> Surfaces:
+        return Surfaces(
+            np.concatenate([self.segments, other.segments]),
+            self.segment_ids + other.segment_ids,
+            np.concatenate([self.cylinders, other.cylinders]),
+            self.cylinder_ids + other.cylinder_ids,
+        )
+
+    def take(self, segment_index: np.ndarray, cylinder_index: np.ndarray) -> Surfaces:
+        """A subset, keeping the names."""
+        return Surfaces(
+            self.segments[segment_index],
+            tuple(self.segment_ids[i] for i in segment_index),
+            self.cylinders[cylinder_index],
+            tuple(self.cylinder_ids[i] for i in cylinder_index),
+        )
+
+    def near(self, x: float, y: float, radius: float) -> tuple[np.ndarray, np.ndarray]:
+        """Indices of segments and cylinders that come within ``radius`` of (x, y)."""
+        s = self.segments
+        ex, ey = s[:, 2] - s[:, 0], s[:, 3] - s[:, 1]
+        length2 = np.maximum(ex * ex + ey * ey, _EPS)
+        t = np.clip(((x - s[:, 0]) * ex + (y - s[:, 1]) * ey) / length2, 0.0, 1.0)
+        seg_d2 = (s[:, 0] + t * ex - x) ** 2 + (s[:, 1] + t * ey - y) ** 2
+        c = self.cylinders
+        cyl_d = np.hypot(c[:, 0] - x, c[:, 1] - y) - c[:, 2]
+        return np.flatnonzero(seg_d2 <= radius * radius), np.flatnonzero(cyl_d <= radius)
+
+
+def cast_rays(
+    segments: np.ndarray,
+    cylinders: np.ndarray,
+    origins: np.ndarray,
+    heights: np.ndarray,
+    azimuths: np.ndarray,
+    tan_el: np.ndarray,
+    cos_el: np.ndarray,
+) -> np.ndarray:
+    """Range to the nearest surface along every ray, ``inf`` where nothing is hit.
+
+    ``origins`` (S, 2) and ``heights`` (S,) place S sensors; ray (s, a, e) leaves sensor s at
+    floor-frame azimuth ``azimuths[s, a]`` (rad) and elevation with tangent ``tan_el[s, e]``.
+    The horizontal intersection is shared by all elevations of one azimuth, so the work is
+    one (S, A, K) solve plus an (S, A, E, K) height test. Returns (S, A, E) ranges along the
+    3-D ray, in mm.
+    """
+    n_sensors, n_az = azimuths.shape
+    dx, dy = np.cos(azimuths)[:, :, None], np.sin(azimuths)[:, :, None]
+    ox, oy = origins[:, 0, None], origins[:, 1, None]
+    parts: list[np.ndarray] = []
+    with np.errstate(divide="ignore", invalid="ignore"):
+        if len(segments):
+            ex = segments[:, 2] - segments[:, 0]
+            ey = segments[:, 3] - segments[:, 1]
+            wx = (segments[:, 0] - ox)[:, None, :]
+            wy = (segments[:, 1] - oy)[:, None, :]
+            denom = dx * ey - dy * ex
+            t = (wx * ey - wy * ex) / denom
+            u = (wx * dy - wy * dx) / denom
+            parts.append(np.where((t > _EPS) & (u >= 0.0) & (u <= 1.0), t, np.inf))
+        if len(cylinders):
+            wx = (ox - cylinders[:, 0])[:, None, :]
+            wy = (oy - cylinders[:, 1])[:, None, :]
+            b = dx * wx + dy * wy
+            c = wx * wx + wy * wy - cylinders[:, 2] ** 2
+            disc = b * b - c
+            t = -b - np.sqrt(np.maximum(disc, 0.0))
+            parts.append(np.where((disc >= 0.0) & (c > 0.0) & (t > _EPS), t, np.inf))
+        if not parts:
+            return np.full((n_sensors, n_az, tan_el.shape[1]), np.inf)
+        t_h = np.concatenate(parts, axis=-1)  # (S, A, K) horizontal distance
+        z_bottom = np.concatenate([segments[:, 4], cylinders[:, 3]])
+        z_top = np.concatenate([segments[:, 5], cylinders[:, 4]])
+        z = heights[:, None, None, None] + t_h[:, :, None, :] * tan_el[:, None, :, None]
+        hit = (z >= z_bottom) & (z <= z_top)
+        nearest = np.where(hit, t_h[:, :, None, :], np.inf).min(axis=-1)
+    return nearest / cos_el[:, None, :]
+
+
+@dataclass(frozen=True)
+class Contact:
+    element: str
+    x_mm: float
+    y_mm: float
+
+
+def footprint_contacts(
+    surfaces: Surfaces,
+    x: float,
+    y: float,
+    theta: float,
+    half_length: float,
+    half_width: float,
+    z_range: tuple[float, float],
+) -> list[Contact]:
+    """Surfaces touching a rectangle centred at (x, y) with heading ``theta`` (rad).
+
+    Segments are moved into the rectangle's frame and clipped against it (Liang-Barsky);
+    the contact point is the middle of the clipped piece. Only surfaces whose height range
+    overlaps ``z_range`` count, so a robot can pass under a table top.
+    """
+    c, s = math.cos(theta), math.sin(theta)
+    contacts: list[Contact] = []
+    seg = surfaces.segments
+    if len(seg):
+        keep = (seg[:, 5] > z_range[0]) & (seg[:, 4] < z_range[1])
+        p0x = c * (seg[:, 0] - x) + s * (seg[:, 1] - y)
+        p0y = -s * (seg[:, 0] - x) + c * (seg[:, 1] - y)
+        p1x = c * (seg[:, 2] - x) + s * (seg[:, 3] - y)
+        p1y = -s * (seg[:, 2] - x) + c * (seg[:, 3] - y)
+        ddx, ddy = p1x - p0x, p1y - p0y
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ax, bx = (-half_length - p0x) / ddx, (half_length - p0x) / ddx
+            ay, by = (-half_width - p0y) / ddy, (half_width - p0y) / ddy
+            enter = np.maximum.reduce([np.zeros_like(ax), np.minimum(ax, bx), np.minimum(ay, by)])
+            leave = np.minimum.reduce([np.ones_like(ax), np.maximum(ax, bx), np.maximum(ay, by)])
+            hit = keep & (enter <= leave)
+        for i in np.flatnonzero(hit):
+            t = (enter[i] + leave[i]) / 2
+            contacts.append(
+                Contact(
+                    surfaces.segment_ids[i],
+                    float(seg[i, 0] + t * (seg[i, 2] - seg[i, 0])),
+                    float(seg[i, 1] + t * (seg[i, 3] - seg[i, 1])),
+                )
+            )
+    cyl = surfaces.cylinders
+    if len(cyl):
+        keep = (cyl[:, 4] > z_range[0]) & (cyl[:, 3] < z_range[1])
+        lx = c * (cyl[:, 0] - x) + s * (cyl[:, 1] - y)
+        ly = -s * (cyl[:, 0] - x) + c * (cyl[:, 1] - y)
+        qx = np.clip(lx, -half_length, half_length)
+        qy = np.clip(ly, -half_width, half_width)
+        hit = keep & (np.hypot(lx - qx, ly - qy) <= cyl[:, 2])
+        for i in np.flatnonzero(hit):
+            contacts.append(
+                Contact(
+                    surfaces.cylinder_ids[i],
+                    float(x + c * qx[i] - s * qy[i]),
+                    float(y + s * qx[i] + c * qy[i]),
+                )
+            )
+    return contacts

@@ -1,0 +1,248 @@
+"""The simulated world: one floor plan, obstacles and the robot, stepped by simulated time.
+
+The world owns ground truth and is queried the way devices are: the simulated VL53L1X asks
+for sensor k's reading at the current pose, the simulated motor controller feeds wheel speed
+commands and reads encoder ticks and the gyro, the simulated DWM1001 asks for a UWB fix.
+Nothing here reads the wall clock; whoever owns time calls :meth:`World.step`. Every noise
+source draws from its own generator spawned from one seed, so a run is reproducible and
+adding queries of one kind does not change the noise of another.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from coffeebot.floorplan import Floor, FloorPlan
+from coffeebot.messages import AnchorRange, UwbFix
+from coffeebot.sim.world.geometry import Surfaces, footprint_contacts
+from coffeebot.sim.world.obstacles import ObstacleSpec, obstacle_surfaces
+from coffeebot.sim.world.robot import Pose, RobotBody, RobotSpec
+from coffeebot.sim.world.tof import SensorArray, ToFModel, ToFReading
+
+PHYSICS_DT_S = 0.005
+"""Longest physics sub-step: 5 mm at 1 m/s, finer than any wall or leg."""
+
+
+class UwbModel(BaseModel):
+    """DWM1001 tag error: ~0.1 m on position (seed 000), anchors usable up to a range."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    position_sigma_mm: float = Field(100.0, ge=0)
+    range_sigma_mm: float = Field(50.0, ge=0)
+    max_anchor_range_mm: float = Field(25_000.0, gt=0)
+    max_anchors: int = Field(4, ge=3)
+
+
+@dataclass(frozen=True)
+class Collision:
+    """The robot's footprint touched something: what, where, and how fast it was going."""
+
+    t_s: float
+    floor: int
+    element: str
+    x_mm: float
+    y_mm: float
+    speed_mm_s: float
+
+
+class World:
+    def __init__(
+        self,
+        plan: FloorPlan,
+        robot: RobotSpec,
+        *,
+        floor: int,
+        pose: Pose,
+        obstacles: Sequence[ObstacleSpec] = (),
+        seed: int = 0,
+        tof: ToFModel | None = None,
+        uwb: UwbModel | None = None,
+    ) -> None:
+        self.plan = plan
+        self.robot = robot
+        self.obstacles = tuple(obstacles)
+        for obstacle in self.obstacles:
+            plan.floor(obstacle.floor)  # raises KeyError naming the missing floor
+        self.tof_model = tof or ToFModel()
+        self.uwb_model = uwb or UwbModel()
+        self.sensors = SensorArray(robot.sensors, self.tof_model)
+        self._tof_rng, self._gyro_rng, self._uwb_rng, self._slip_rng = (
+            np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(4)
+        )
+        self._static: dict[int, Surfaces] = {}
+        reach = max((math.hypot(m.x_mm, m.y_mm) for m in robot.sensors), default=0.0)
+        self._cast_radius = self.tof_model.max_range_mm + reach
+        self._contact_radius = math.hypot(robot.length_mm, robot.width_mm) / 2 + 1.0
+        self.body = RobotBody(robot, pose)
+        self.floor_level = plan.floor(floor).level
+        self.t_s = 0.0
+        self.collisions: list[Collision] = []
+        self._touching: set[str] = set()
+        self._ranges: np.ndarray | None = None
+        self._record_contacts(
+            self._contacts(self.body.state.x, self.body.state.y, self.body.state.theta)
+        )
+
+    # --- state -----------------------------------------------------------------------------
+
+    @property
+    def floor(self) -> Floor:
+        return self.plan.floor(self.floor_level)
+
+    @property
+    def pose(self) -> Pose:
+        """Ground-truth pose of the body centre."""
+        return self.body.pose
+
+    def surfaces(self) -> Surfaces:
+        """Everything on the current floor at the current time."""
+        surfaces = self._static_surfaces(self.floor_level)
+        for obstacle in self.obstacles:
+            if obstacle.moving and obstacle.floor == self.floor_level:
+                surfaces = surfaces + obstacle_surfaces(obstacle, self.t_s)
+        return surfaces
+
+    def _static_surfaces(self, level: int) -> Surfaces:
+        if level not in self._static:
+            floor = self.plan.floor(level)
+            surfaces = Surfaces(
+                floor.segment_array,
+                tuple(s.element for s in floor.segments),
+                np.zeros((0, 5)),
+                (),
+            )
+            for obstacle in self.obstacles:
+                if obstacle.floor == level and not obstacle.moving:
+                    surfaces = surfaces + obstacle_surfaces(obstacle)
+            self._static[level] = surfaces
+        return self._static[level]
+
+    # --- time ------------------------------------------------------------------------------
+
+    def step(self, dt_s: float) -> None:
+        """Advance simulated time by ``dt_s``: obstacles move, the robot drives, contacts
+        are recorded."""
+        if dt_s <= 0:
+            return
+        n = max(1, math.ceil(dt_s / PHYSICS_DT_S - 1e-9))
+        h = dt_s / n
+        for _ in range(n):
+            self.t_s += h
+            proposed = self.body.propose(h, self._slip_rng)
+            contacts = self._contacts(proposed.x, proposed.y, proposed.theta)
+            self._record_contacts(contacts)
+            if contacts:
+                self.body.stall()
+            else:
+                self.body.state = proposed
+        self._ranges = None
+
+    def move_to_floor(self, level: int, pose: Pose) -> None:
+        """The elevator ride: the robot leaves at rest on another floor."""
+        self.floor_level = self.plan.floor(level).level
+        self.body.place(pose)
+        self._touching.clear()
+        self._ranges = None
+
+    def _contacts(self, x: float, y: float, theta: float) -> dict[str, tuple[float, float]]:
+        surfaces = self.surfaces()
+        near = surfaces.take(*surfaces.near(x, y, self._contact_radius))
+        spec = self.robot
+        found = footprint_contacts(
+            near,
+            x,
+            y,
+            theta,
+            spec.length_mm / 2,
+            spec.width_mm / 2,
+            (spec.ground_clearance_mm, spec.height_mm),
+        )
+        return {c.element: (c.x_mm, c.y_mm) for c in found}
+
+    def _record_contacts(self, contacts: dict[str, tuple[float, float]]) -> None:
+        speed = abs(self.body.state.speed_mm_s)
+        for element, (x, y) in contacts.items():
+            if element not in self._touching:
+                self.collisions.append(Collision(self.t_s, self.floor_level, element, x, y, speed))
+        self._touching = set(contacts)
+
+    # --- motor controller ------------------------------------------------------------------
+
+    def command_wheels(self, left_mm_s: float, right_mm_s: float) -> None:
+        """Wheel speeds the motor controller is driving towards (nominal mm/s)."""
+        self.body.command(left_mm_s, right_mm_s)
+
+    @property
+    def encoder_ticks(self) -> tuple[int, int]:
+        return self.body.encoder_ticks
+
+    @property
+    def wheel_speeds_mm_s(self) -> tuple[float, float]:
+        return self.body.wheel_speeds_mm_s
+
+    def gyro_z_dps(self) -> float:
+        """One gyro sample now (true rate + bias + noise)."""
+        return self.body.gyro_z_dps(self._gyro_rng)
+
+    # --- time-of-flight sensors ------------------------------------------------------------
+
+    def tof_ranges(self) -> np.ndarray:
+        """Noiseless per-ray ranges (sensors, rays) for the current state, cached per step."""
+        if self._ranges is None:
+            s = self.body.state
+            surfaces = self.surfaces()
+            seg, cyl = surfaces.near(s.x, s.y, self._cast_radius)
+            self._ranges = self.sensors.ranges(
+                s.x, s.y, s.theta, surfaces.segments[seg], surfaces.cylinders[cyl]
+            )
+        return self._ranges
+
+    def tof_reading(self, sensor: int) -> ToFReading:
+        """One ranging of sensor ``sensor`` (index into the robot's mounts), with noise."""
+        return self.sensors.measure(self.tof_ranges()[sensor : sensor + 1], self._tof_rng)[0]
+
+    def scan(self) -> list[ToFReading]:
+        """One ranging of every sensor."""
+        return self.sensors.measure(self.tof_ranges(), self._tof_rng)
+
+    # --- UWB -------------------------------------------------------------------------------
+
+    def uwb_tag_position(self) -> tuple[float, float, float]:
+        """Ground truth of the tag antenna in the floor frame."""
+        s = self.body.state
+        tx, ty, tz = self.robot.uwb_tag_mm
+        c, sn = math.cos(s.theta), math.sin(s.theta)
+        return s.x + c * tx - sn * ty, s.y + sn * tx + c * ty, tz
+
+    def uwb_fix(self) -> UwbFix | None:
+        """What the tag would report now; ``None`` with fewer than three anchors in range."""
+        model, rng = self.uwb_model, self._uwb_rng
+        truth = np.array(self.uwb_tag_position())
+        anchors = sorted(
+            (float(np.linalg.norm(truth - (a.x_mm, a.y_mm, a.z_mm))), a.id, a)
+            for a in self.floor.anchors
+        )
+        used = [(d, a) for d, _, a in anchors if d <= model.max_anchor_range_mm]
+        used = used[: model.max_anchors]
+        if len(used) < 3:
+            return None
+        ranges = [
+            AnchorRange(
+                anchor_id=a.id,
+                x_mm=a.x_mm,
+                y_mm=a.y_mm,
+                z_mm=a.z_mm,
+                distance_mm=max(0.0, d + model.range_sigma_mm * rng.standard_normal()),
+                quality=int(np.clip(100 - d / 300, 0, 100)),
+            )
+            for d, a in used
+        ]
+        x, y, z = truth + model.position_sigma_mm * rng.standard_normal(3)
+        quality = round(sum(r.quality for r in ranges) / len(ranges))
+        return UwbFix(x_mm=x, y_mm=y, z_mm=z, quality=quality, anchors=ranges)

@@ -1,0 +1,144 @@
+"""Collision rules: the seed's private sphere and each extension of it."""
+
+from __future__ import annotations
+
+import pytest
+from perception_helpers import robot, scan
+
+from coffeebot.config import CollisionConfig
+from coffeebot.messages import ReadingStatus, SafetyState
+from coffeebot.perception.collision import CollisionMonitor, safe_speed_mm_s, stop_distance_mm
+
+CLEAR = {0: 300, 1: 300, 6: 900, 7: 900}  # keeping right, as the seed's robot did
+
+
+def monitor(**overrides: float) -> CollisionMonitor:
+    cfg = robot()
+    return CollisionMonitor(
+        cfg.tof.sensors, cfg.collision.model_copy(update=overrides), max_speed_mm_s=1000
+    )
+
+
+def test_starts_in_stop_before_any_scan() -> None:
+    assert monitor().state is SafetyState.STOP
+
+
+def test_go_only_when_every_face_is_clear() -> None:
+    m = monitor()
+    status = m.update(scan(CLEAR), speed_mm_s=0, scan_seq=1)
+    assert status.state is SafetyState.GO
+    assert status.reason == "clear again"
+    assert m.update(scan(CLEAR), speed_mm_s=0, scan_seq=2).reason == "clear"
+
+
+def test_seed_radii_front_200_sides_50_at_standstill() -> None:
+    m = monitor()
+    front = m.update(scan({**CLEAR, 3: 190}), speed_mm_s=0, scan_seq=1)
+    assert (front.state, front.face, front.sensor, front.distance_mm) == (
+        SafetyState.STOP,
+        "front",
+        3,
+        190,
+    )
+    side = monitor().update(scan({**CLEAR, 0: 45}), speed_mm_s=0, scan_seq=1)
+    assert (side.state, side.face, side.sensor) == (SafetyState.STOP, "right", 0)
+    # 90 mm from the right wall is inside the seed's first 100 mm radius, which never let the
+    # robot start; 50 mm plus the hysteresis does.
+    assert monitor().update(scan({**CLEAR, 0: 90, 1: 90}), 0, 1).state is SafetyState.GO
+
+
+def test_stop_distance_grows_with_speed_and_never_below_seed_radius() -> None:
+    cfg = CollisionConfig()
+    assert stop_distance_mm(cfg, 0) == cfg.front_radius_mm
+    assert stop_distance_mm(cfg, 50) == cfg.front_radius_mm
+    fast = stop_distance_mm(cfg, 1000)
+    assert fast == pytest.approx(1000 * 0.1 + 1000**2 / 900 + 50)
+    assert safe_speed_mm_s(cfg, fast - cfg.margin_mm) == pytest.approx(1000)
+    # 500 mm ahead is fine when creeping, a stop at 1 m/s.
+    assert monitor().update(scan({**CLEAR, 3: 500}), 1000, 1).state is SafetyState.STOP
+
+
+def test_slowdown_zone_before_stop_zone_limits_speed() -> None:
+    m = monitor()
+    m.update(scan(CLEAR), 0, 1)
+    status = m.update(scan({**CLEAR, 4: 450}), speed_mm_s=300, scan_seq=2)
+    assert status.state is SafetyState.SLOW
+    assert status.face == "front" and status.sensor == 4
+    assert 0 < status.speed_limit_mm_s < 1000
+    nearer = m.update(scan({**CLEAR, 4: 350}), speed_mm_s=200, scan_seq=3)
+    assert nearer.speed_limit_mm_s < status.speed_limit_mm_s
+
+
+def test_hysteresis_keeps_stop_until_clearance_exceeds_radius_plus_margin() -> None:
+    m = monitor(hysteresis_mm=30)
+    m.update(scan(CLEAR), 0, 1)
+    assert m.update(scan({**CLEAR, 3: 199}), 0, 2).state is SafetyState.STOP
+    # Jitter just above the radius does not release the stop...
+    assert m.update(scan({**CLEAR, 3: 210}), 0, 3).state is SafetyState.STOP
+    assert m.update(scan({**CLEAR, 3: 205}), 0, 4).state is SafetyState.STOP
+    # ...clearing the radius plus the hysteresis does, and says so.
+    released = m.update(scan({**CLEAR, 3: 240}), 0, 5)
+    assert released.state is not SafetyState.STOP
+
+
+def test_obstacle_leaving_gives_clear_again() -> None:
+    m = monitor()
+    m.update(scan(CLEAR), 0, 1)
+    m.update(scan({**CLEAR, 2: 100}), 0, 2)
+    status = m.update(scan(CLEAR), 0, 3)
+    assert status.state is SafetyState.GO and status.reason == "clear again"
+
+
+def test_stale_sensor_stops_after_n_cycles() -> None:
+    m = monitor(stale_cycles=3)
+    m.update(scan(CLEAR), 0, 1)
+    bad = {5: ReadingStatus.SIGMA_FAIL}
+    assert m.update(scan(CLEAR, status=bad), 0, 2).state is SafetyState.GO
+    assert m.update(scan(CLEAR, status=bad), 0, 3).state is SafetyState.GO
+    status = m.update(scan(CLEAR, status=bad), 0, 4)
+    assert (status.state, status.sensor) == (SafetyState.STOP, 5)
+    assert "stale" in status.reason
+    assert m.update(scan(CLEAR), 0, 5).state is SafetyState.GO
+
+
+def test_missing_sensor_counts_as_stale() -> None:
+    m = monitor(stale_cycles=2)
+    m.update(scan(CLEAR), 0, 1)
+    partial = scan(CLEAR)
+    partial = partial.model_copy(update={"readings": partial.readings[:7]})
+    m.update(partial, 0, 2)
+    status = m.update(partial, 0, 3)
+    assert (status.state, status.sensor) == (SafetyState.STOP, 7)
+
+
+@pytest.mark.parametrize(
+    ("kind", "kwargs"),
+    [
+        ("unhealthy", {"unhealthy": frozenset({6})}),
+        ("hardware", {"status": {6: ReadingStatus.HARDWARE_FAIL}}),
+        ("bus", {"status": {6: ReadingStatus.BUS_ERROR}}),
+    ],
+)
+def test_failed_sensor_stops_at_once(kind: str, kwargs: dict) -> None:
+    m = monitor()
+    m.update(scan(CLEAR), 0, 1)
+    status = m.update(scan(CLEAR, **kwargs), 0, 2)
+    assert (status.state, status.sensor) == (SafetyState.STOP, 6), kind
+
+
+def test_nothing_within_range_is_clear_not_stop() -> None:
+    m = monitor()
+    for seq in range(1, 20):  # far longer than stale_cycles
+        status = m.update(scan({0: 300, 1: 300}), 0, seq)  # every other sensor: no target
+        assert status.state is SafetyState.GO
+    beyond = m.update(scan({**CLEAR, 3: 4200}), 0, 20)
+    assert beyond.state is SafetyState.GO
+    out = m.update(scan(CLEAR, status={2: ReadingStatus.OUT_OF_BOUNDS}), 0, 21)
+    assert out.state is SafetyState.GO
+
+
+def test_unknown_speed_assumes_max() -> None:
+    m = monitor()
+    m.update(scan(CLEAR), 0, 1)
+    assert m.update(scan({**CLEAR, 3: 700}), None, 2).state is SafetyState.STOP
+    assert m.update(scan({**CLEAR, 3: 700}), 0, 3).state is SafetyState.GO

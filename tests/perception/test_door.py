@@ -1,0 +1,119 @@
+"""Door detection: the seed's sliding window, its size from speed, and plan matching."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from perception_helpers import hallway_floor, pose, robot, scan_at
+
+from coffeebot.config import DoorConfig
+from coffeebot.floorplan import Floor, parse_floorplan
+from coffeebot.messages import DoorEvent
+from coffeebot.perception.door import DoorDetector, readings_per_door, window_size
+
+RATE_HZ = 10.0
+
+
+def drive(
+    floor: Floor,
+    *,
+    start: float,
+    end: float,
+    speed: float,
+    y: float = -300.0,
+    pose_offset: float = 0.0,
+    noise_mm: float = 0.0,
+    target: str | None = None,
+    seed: int = 1,
+) -> list[DoorEvent]:
+    """Drive straight along the hallway from ``start`` to ``end`` and collect door events."""
+    detector = DoorDetector(robot().tof.sensors, DoorConfig(), target_room=target)
+    rng = np.random.default_rng(seed)
+    heading = 0.0 if end > start else 180.0
+    step = speed / RATE_HZ * (1 if end > start else -1)
+    events: list[DoorEvent] = []
+    for k, x in enumerate(np.arange(start, end, step)):
+        s = scan_at(floor, float(x), y, heading, noise_mm=noise_mm, rng=rng)
+        believed = pose(float(x) + pose_offset, y, heading)
+        events += detector.update(s, k, believed, floor, speed, RATE_HZ)
+    return events
+
+
+def test_window_is_twice_the_readings_per_door_and_shrinks_with_speed() -> None:
+    cfg = DoorConfig()
+    # The seed's example: readings 0.25 s apart at ~0.9 m/s give 4 per door, a window of 8.
+    assert readings_per_door(cfg, 900, 4.0) == 4
+    assert window_size(cfg, 900, 4.0) == 8
+    sizes = [window_size(cfg, v, RATE_HZ) for v in (100, 200, 500, 1000)]
+    assert sizes == sorted(sizes, reverse=True)
+    assert sizes[-1] == 18
+    assert window_size(cfg, 0, RATE_HZ) == 2 * cfg.max_readings_per_door
+    assert window_size(cfg, 100_000, RATE_HZ) == 2 * cfg.min_readings_per_door
+
+
+@pytest.mark.parametrize("speed", [100, 300, 600, 1000])
+def test_passing_a_door_names_the_room_at_any_speed(speed: float) -> None:
+    floor = hallway_floor()
+    events = drive(floor, start=4500, end=7500, speed=speed, noise_mm=5.0)
+    assert [(e.room, e.side, e.kind) for e in events] == [("102", "right", "door")]
+    event = events[0]
+    assert event.jump_mm == pytest.approx(100, abs=25)
+    assert abs(event.x_mm - 6000) <= speed / RATE_HZ / 2 + 10
+    assert abs(event.along_correction_mm or 0) <= speed / RATE_HZ / 2 + 10
+
+
+def test_below_the_80_mm_threshold_is_no_door() -> None:
+    def floor_with_recess(recess: float) -> Floor:
+        door = {"room": "9", "side": "right", "at_mm": 3000, "recess_mm": recess}
+        tea = {"room": "t", "side": "left", "at_mm": 500, "kind": "tea_room"}
+        hallway = {"start": [0, 0], "end": [6000, 0]}
+        return parse_floorplan(
+            {"floors": [{"level": 1, "hallway": hallway, "doors": [door, tea]}]}
+        ).floors[0]
+
+    assert drive(floor_with_recess(70), start=1500, end=4500, speed=300) == []
+    assert len(drive(floor_with_recess(100), start=1500, end=4500, speed=300)) == 1
+
+
+def test_plain_wall_with_noise_gives_no_false_alarms() -> None:
+    floor = hallway_floor()
+    assert drive(floor, start=6600, end=8000, speed=200, noise_mm=5.0, seed=3) == []
+
+
+def test_along_hallway_correction_from_the_matched_door() -> None:
+    floor = hallway_floor()
+    # The pose believes the robot is 300 mm further along than it is.
+    events = drive(floor, start=4500, end=7500, speed=300, pose_offset=300.0)
+    assert len(events) == 1 and events[0].room == "102"
+    assert events[0].along_correction_mm == pytest.approx(-300, abs=20)
+    assert (events[0].plan_x_mm, events[0].plan_y_mm) == (6000, -850)
+
+
+def test_opening_is_not_a_door() -> None:
+    floor = hallway_floor()
+    events = drive(floor, start=7600, end=10500, speed=500)
+    assert [(e.kind, e.room) for e in events] == [("opening", None)]
+
+
+def test_travelling_back_sees_the_door_on_its_left() -> None:
+    floor = hallway_floor()
+    events = drive(floor, start=7500, end=4500, speed=500, y=300.0)
+    assert [(e.room, e.side) for e in events] == [("102", "right")]
+    assert abs(events[0].along_correction_mm or 0) <= 30
+
+
+def test_arrived_at_target_door() -> None:
+    floor = hallway_floor()
+    events = drive(floor, start=4500, end=13000, speed=500, target="104")
+    arrived = [e.room for e in events if e.arrived_at_target]
+    assert arrived == ["104"]
+    assert "102" in [e.room for e in events]
+
+
+def test_no_readings_while_standing_still() -> None:
+    floor = hallway_floor()
+    detector = DoorDetector(robot().tof.sensors, DoorConfig())
+    s = scan_at(floor, 5900, -300, 0.0)
+    for k in range(50):
+        assert detector.update(s, k, pose(5900, -300, 0.0), floor, 0.0, RATE_HZ) == []
+    assert all(not t.samples for t in detector.tracks.values())
