@@ -191,7 +191,7 @@ def test_uwb_needs_three_anchors(tiny_plan: FloorPlan) -> None:
 
 def test_elevator_ride_changes_floor(cs_building: FloorPlan, board_robot: RobotSpec) -> None:
     world = World(cs_building, board_robot, floor=2, pose=Pose(41000, 0, 0))
-    world.move_to_floor(3, Pose(42000, 300, -90))
+    world.place_robot(Pose(42000, 300, -90), floor=3)
     assert world.floor.level == 3
     assert world.pose == Pose(42000, 300, -90)
     assert world.uwb_fix() is not None

@@ -83,14 +83,12 @@ class World:
         self._cast_radius = self.tof_model.max_range_mm + reach
         self._contact_radius = math.hypot(robot.length_mm, robot.width_mm) / 2 + 1.0
         self.body = RobotBody(robot, pose)
-        self.floor_level = plan.floor(floor).level
         self.t_s = 0.0
         self.collisions: list[Collision] = []
         self._touching: set[str] = set()
         self._ranges: np.ndarray | None = None
-        self._record_contacts(
-            self._contacts(self.body.state.x, self.body.state.y, self.body.state.theta)
-        )
+        self.floor_level = floor
+        self.place_robot(pose, floor)  # starting inside something counts as a collision
 
     # --- state -----------------------------------------------------------------------------
 
@@ -149,12 +147,15 @@ class World:
                     self._touching &= clear_of.keys()
         self._ranges = None
 
-    def move_to_floor(self, level: int, pose: Pose) -> None:
-        """The elevator ride: the robot leaves at rest on another floor."""
-        self.floor_level = self.plan.floor(level).level
+    def place_robot(self, pose: Pose, floor: int | None = None) -> None:
+        """Put the robot at rest somewhere, on another floor after an elevator ride."""
+        if floor is not None:
+            self.floor_level = self.plan.floor(floor).level
         self.body.place(pose)
         self._touching.clear()
         self._ranges = None
+        s = self.body.state
+        self._record_contacts(self._contacts(s.x, s.y, s.theta))
 
     def _contacts(
         self, x: float, y: float, theta: float, inflate_mm: float = 0.0
