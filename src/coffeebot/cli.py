@@ -11,6 +11,7 @@ from pathlib import Path
 from coffeebot.board import Board
 from coffeebot.config import ConfigError, RobotConfig, load_robot_config
 from coffeebot.daemon import Daemon
+from coffeebot.floorplan_svg import add_render_arguments, render_command
 from coffeebot.logs import setup_logging
 from coffeebot.messages import ALL_TOPICS
 
@@ -36,6 +37,9 @@ def build_parser() -> argparse.ArgumentParser:
     _add_common(run)
     sim = sub.add_parser("sim", help="run the daemon on the simulated robot and world")
     _add_common(sim)
+    floorplan = sub.add_parser("floorplan", help="floor plan tools")
+    floorplan_sub = floorplan.add_subparsers(dest="floorplan_command", required=True)
+    add_render_arguments(floorplan_sub.add_parser("render", help="draw a floor plan as SVG"))
     return parser
 
 
@@ -48,6 +52,8 @@ async def _run_daemon(config: RobotConfig) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    if args.command == "floorplan":
+        return render_command(args)
     try:
         config = load_robot_config(args.board)
     except ConfigError as exc:

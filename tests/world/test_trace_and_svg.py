@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from coffeebot import cli
 from coffeebot.floorplan import FloorPlan
 from coffeebot.floorplan_svg import add_render_arguments, render_command, render_svg
 from coffeebot.messages import ReadingStatus
@@ -95,3 +96,9 @@ def test_render_command_reports_a_bad_plan(
     assert render_command(_args(str(bad), "-o", str(tmp_path / "x.svg"))) == 2
     err = capsys.readouterr().err
     assert "bad.toml: floor 1: hallway: Field required" in err
+
+
+def test_cli_renders_a_floor_plan(tmp_path: Path) -> None:
+    out = tmp_path / "plan.svg"
+    assert cli.main(["floorplan", "render", str(CS_BUILDING), "-o", str(out)]) == 0
+    assert ET.fromstring(out.read_text()).tag == "{http://www.w3.org/2000/svg}svg"
