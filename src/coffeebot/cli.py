@@ -11,6 +11,7 @@ from pathlib import Path
 from coffeebot.board import Board
 from coffeebot.config import ConfigError, RobotConfig, load_robot_config
 from coffeebot.daemon import Daemon
+from coffeebot.floorplan_svg import add_render_arguments, render_command
 from coffeebot.logs import setup_logging
 from coffeebot.messages import ALL_TOPICS
 
@@ -41,6 +42,9 @@ def build_parser() -> argparse.ArgumentParser:
     check.add_argument("--sim", action="store_true", help="probe the simulated buses instead")
     check.add_argument("--json", action="store_true", help="print the table as JSON")
     check.add_argument("--fault", help="with --sim: inject a fault, e.g. tof3-nack, uwb-unplug")
+    floorplan = sub.add_parser("floorplan", help="floor plan tools")
+    floorplan_sub = floorplan.add_subparsers(dest="floorplan_command", required=True)
+    add_render_arguments(floorplan_sub.add_parser("render", help="draw a floor plan as SVG"))
     return parser
 
 
@@ -53,6 +57,8 @@ async def _run_daemon(config: RobotConfig) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    if args.command == "floorplan":
+        return render_command(args)
     try:
         config = load_robot_config(args.board)
     except ConfigError as exc:

@@ -150,6 +150,15 @@ class WallSegment(NamedTuple):
     z_top: float
 
 
+def segment_distances(segments: np.ndarray, x: float, y: float) -> np.ndarray:
+    """Distance from (x, y) to each segment of an (N, >=4) array of x0, y0, x1, y1 rows."""
+    px, py = segments[:, 0], segments[:, 1]
+    ex, ey = segments[:, 2] - px, segments[:, 3] - py
+    length2 = np.maximum(ex * ex + ey * ey, 1e-9)
+    t = np.clip(((x - px) * ex + (y - py) * ey) / length2, 0.0, 1.0)
+    return np.hypot(px + t * ex - x, py + t * ey - y)
+
+
 class Floor(_Model):
     level: int
     name: str = ""
@@ -222,12 +231,7 @@ class Floor(_Model):
 
     def walls_near(self, x_mm: float, y_mm: float, radius_mm: float) -> list[WallSegment]:
         """Wall segments passing within ``radius_mm`` of a point."""
-        a = self.segment_array
-        px, py = a[:, 0], a[:, 1]
-        ex, ey = a[:, 2] - px, a[:, 3] - py
-        length2 = np.maximum(ex * ex + ey * ey, 1e-9)
-        t = np.clip(((x_mm - px) * ex + (y_mm - py) * ey) / length2, 0.0, 1.0)
-        dist = np.hypot(px + t * ex - x_mm, py + t * ey - y_mm)
+        dist = segment_distances(self.segment_array, x_mm, y_mm)
         return [self.segments[i] for i in np.flatnonzero(dist <= radius_mm)]
 
     # --- geometry --------------------------------------------------------------------------

@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from coffeebot.floorplan import segment_distances
+
 _EPS = 1e-6
 
 
@@ -50,14 +52,10 @@ class Surfaces:
 
     def near(self, x: float, y: float, radius: float) -> tuple[np.ndarray, np.ndarray]:
         """Indices of segments and cylinders that come within ``radius`` of (x, y)."""
-        s = self.segments
-        ex, ey = s[:, 2] - s[:, 0], s[:, 3] - s[:, 1]
-        length2 = np.maximum(ex * ex + ey * ey, _EPS)
-        t = np.clip(((x - s[:, 0]) * ex + (y - s[:, 1]) * ey) / length2, 0.0, 1.0)
-        seg_d2 = (s[:, 0] + t * ex - x) ** 2 + (s[:, 1] + t * ey - y) ** 2
+        seg_d = segment_distances(self.segments, x, y)
         c = self.cylinders
         cyl_d = np.hypot(c[:, 0] - x, c[:, 1] - y) - c[:, 2]
-        return np.flatnonzero(seg_d2 <= radius * radius), np.flatnonzero(cyl_d <= radius)
+        return np.flatnonzero(seg_d <= radius), np.flatnonzero(cyl_d <= radius)
 
 
 def cast_rays(

@@ -134,7 +134,9 @@ class RobotBody:
         step = spec.max_accel_mm_s2 * dt
         left = s.left_mm_s + max(-step, min(step, self._target[0] - s.left_mm_s))
         right = s.right_mm_s + max(-step, min(step, self._target[1] - s.right_mm_s))
-        turn_l, turn_r = left * spec.left_motor_gain, right * spec.right_motor_gain
+        # Mean motor speed over the step: exact while accelerating uniformly.
+        turn_l = (s.left_mm_s + left) / 2 * spec.left_motor_gain
+        turn_r = (s.right_mm_s + right) / 2 * spec.right_motor_gain
         slip_l, slip_r = (1.0 + spec.slip_sigma * rng.standard_normal(2)).tolist()
         ground_l = turn_l * spec.left_wheel_scale * slip_l
         ground_r = turn_r * spec.right_wheel_scale * slip_r

@@ -27,6 +27,9 @@ from coffeebot.sim.world.tof import SensorArray, ToFModel, ToFReading
 PHYSICS_DT_S = 0.005
 """Longest physics sub-step: 5 mm at 1 m/s, finer than any wall or leg."""
 
+_RELEASE_MM = 20.0
+"""A contact ends once the robot is this far clear, so pushing against a wall is one collision."""
+
 
 class UwbModel(BaseModel):
     """DWM1001 tag error: ~0.1 m on position (seed 000), anchors usable up to a range."""
@@ -80,14 +83,12 @@ class World:
         self._cast_radius = self.tof_model.max_range_mm + reach
         self._contact_radius = math.hypot(robot.length_mm, robot.width_mm) / 2 + 1.0
         self.body = RobotBody(robot, pose)
-        self.floor_level = plan.floor(floor).level
         self.t_s = 0.0
         self.collisions: list[Collision] = []
         self._touching: set[str] = set()
         self._ranges: np.ndarray | None = None
-        self._record_contacts(
-            self._contacts(self.body.state.x, self.body.state.y, self.body.state.theta)
-        )
+        self.floor_level = floor
+        self.place_robot(pose, floor)  # starting inside something counts as a collision
 
     # --- state -----------------------------------------------------------------------------
 
@@ -136,41 +137,51 @@ class World:
             self.t_s += h
             proposed = self.body.propose(h, self._slip_rng)
             contacts = self._contacts(proposed.x, proposed.y, proposed.theta)
-            self._record_contacts(contacts)
             if contacts:
+                self._record_contacts(contacts)
                 self.body.stall()
             else:
                 self.body.state = proposed
+                if self._touching:
+                    clear_of = self._contacts(proposed.x, proposed.y, proposed.theta, _RELEASE_MM)
+                    self._touching &= clear_of.keys()
         self._ranges = None
 
-    def move_to_floor(self, level: int, pose: Pose) -> None:
-        """The elevator ride: the robot leaves at rest on another floor."""
-        self.floor_level = self.plan.floor(level).level
+    def place_robot(self, pose: Pose, floor: int | None = None) -> None:
+        """Put the robot at rest somewhere, on another floor after an elevator ride."""
+        if floor is not None:
+            self.floor_level = self.plan.floor(floor).level
         self.body.place(pose)
         self._touching.clear()
         self._ranges = None
+        s = self.body.state
+        self._record_contacts(self._contacts(s.x, s.y, s.theta))
 
-    def _contacts(self, x: float, y: float, theta: float) -> dict[str, tuple[float, float]]:
+    def _contacts(
+        self, x: float, y: float, theta: float, inflate_mm: float = 0.0
+    ) -> dict[str, tuple[float, float]]:
+        """Elements touching the footprint at a pose (grown by ``inflate_mm`` on each side)."""
         surfaces = self.surfaces()
-        near = surfaces.take(*surfaces.near(x, y, self._contact_radius))
+        near = surfaces.take(*surfaces.near(x, y, self._contact_radius + inflate_mm))
         spec = self.robot
         found = footprint_contacts(
             near,
             x,
             y,
             theta,
-            spec.length_mm / 2,
-            spec.width_mm / 2,
+            spec.length_mm / 2 + inflate_mm,
+            spec.width_mm / 2 + inflate_mm,
             (spec.ground_clearance_mm, spec.height_mm),
         )
         return {c.element: (c.x_mm, c.y_mm) for c in found}
 
     def _record_contacts(self, contacts: dict[str, tuple[float, float]]) -> None:
+        """A contact is a new collision unless the robot has stayed against that element."""
         speed = abs(self.body.state.speed_mm_s)
         for element, (x, y) in contacts.items():
             if element not in self._touching:
                 self.collisions.append(Collision(self.t_s, self.floor_level, element, x, y, speed))
-        self._touching = set(contacts)
+        self._touching |= contacts.keys()
 
     # --- motor controller ------------------------------------------------------------------
 

@@ -1,0 +1,176 @@
+"""Simulation cost: ToF scans per second of wall time, 8 sensors, the full CS building.
+
+Prints a table for docs/benchmarks.md. Target: >= 1000 scans/s (20x real time at 50 Hz).
+The baseline is a naive per-ray Python loop over every surface of the floor, measured in the
+same run on the same poses; its ranges are checked against the vectorised ones.
+
+    .venv/bin/python bench/world.py [--scans N]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from coffeebot.config import load_robot_config
+from coffeebot.floorplan import load_floorplan
+from coffeebot.sim.world import ObstacleSpec, Pose, RobotSpec, World
+from coffeebot.sim.world.trace import hallway_pose
+
+ROOT = Path(__file__).resolve().parents[1]
+SCAN_RATE_HZ = 50.0
+
+OBSTACLES = [
+    ObstacleSpec(id="cart", kind="mail_cart", floor=2, x_mm=7000, y_mm=-550, heading_deg=0),
+    ObstacleSpec(id="swivel", kind="swivel_chair", floor=2, x_mm=12000, y_mm=500),
+    ObstacleSpec(id="sofa", kind="sofa", floor=2, x_mm=18000, y_mm=380),
+    ObstacleSpec(id="chair", kind="wooden_chair", floor=2, x_mm=28000, y_mm=-550),
+    ObstacleSpec(id="box", kind="cardboard_box", floor=2, x_mm=31000, y_mm=0),
+    ObstacleSpec(
+        id="walker",
+        kind="person",
+        floor=2,
+        x_mm=1000,
+        y_mm=300,
+        path=[(40000, 300)],
+        speed_mm_s=1200,
+    ),
+]
+
+
+def _poses(world: World, n: int) -> list[Pose]:
+    floor = world.floor
+    rng = np.random.default_rng(0)
+    poses = []
+    for _ in range(n):
+        pose = hallway_pose(floor, rng.uniform(1000, 43000), rng.uniform(-500, 500))
+        poses.append(pose._replace(heading_deg=pose.heading_deg + rng.uniform(-20, 20)))
+    return poses
+
+
+def _naive_ranges(world: World) -> np.ndarray:
+    """Per ray, per surface, in plain Python: what the vectorised caster replaces."""
+    s = world.body.state
+    surfaces = world.surfaces()
+    sensors = world.sensors
+    n = sensors.model.rays_per_axis
+    unit = [-1 + 2 * i / (n - 1) for i in range(n)] if n > 1 else [0.0]
+    out = []
+    for mount in sensors.mounts:
+        half = math.radians(mount.fov_deg / 2)
+        ox = s.x + math.cos(s.theta) * mount.x_mm - math.sin(s.theta) * mount.y_mm
+        oy = s.y + math.sin(s.theta) * mount.x_mm + math.cos(s.theta) * mount.y_mm
+        row = []
+        for ua in unit:
+            for ue in unit:
+                if ua * ua + ue * ue > 1 + 1e-9:
+                    continue
+                az = s.theta + math.radians(mount.yaw_deg) + ua * half
+                el = ue * half
+                dx, dy = math.cos(az), math.sin(az)
+                best = math.inf
+                for x0, y0, x1, y1, zb, zt in surfaces.segments.tolist():
+                    ex, ey = x1 - x0, y1 - y0
+                    denom = dx * ey - dy * ex
+                    if denom == 0:
+                        continue
+                    wx, wy = x0 - ox, y0 - oy
+                    t = (wx * ey - wy * ex) / denom
+                    u = (wx * dy - wy * dx) / denom
+                    if t > 1e-6 and 0 <= u <= 1 and zb <= mount.height_mm + t * math.tan(el) <= zt:
+                        best = min(best, t)
+                for cx, cy, r, zb, zt in surfaces.cylinders.tolist():
+                    wx, wy = ox - cx, oy - cy
+                    b = dx * wx + dy * wy
+                    c = wx * wx + wy * wy - r * r
+                    disc = b * b - c
+                    if disc < 0 or c <= 0:
+                        continue
+                    t = -b - math.sqrt(disc)
+                    if t > 1e-6 and zb <= mount.height_mm + t * math.tan(el) <= zt:
+                        best = min(best, t)
+                row.append(best / math.cos(el))
+        out.append(row)
+    return np.array(out)
+
+
+def _rate(world: World, poses: list[Pose], work: Callable[[], object]) -> tuple[int, float]:
+    """Time ``work`` alone at each pose (placing the robot is not part of a scan)."""
+    elapsed = 0.0
+    for pose in poses:
+        world.place_robot(pose)
+        start = time.perf_counter()
+        work()
+        elapsed += time.perf_counter() - start
+    return len(poses), elapsed
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scans", type=int, default=3000)
+    parser.add_argument("--naive-scans", type=int, default=30)
+    args = parser.parse_args()
+
+    plan = load_floorplan(ROOT / "floorplans" / "cs-building.toml")
+    robot = RobotSpec.from_config(load_robot_config(ROOT / "boards" / "coffeebot-v1.toml"))
+    bare = World(plan, robot, floor=2, pose=Pose(2000, 0, 0))
+    furnished = World(plan, robot, floor=2, pose=Pose(2000, 0, 0), obstacles=OBSTACLES)
+    poses = _poses(bare, args.scans)
+
+    # The vectorised caster skips surfaces out of range; within range both must agree.
+    limit = furnished.tof_model.max_range_mm
+    check = _poses(furnished, args.naive_scans)
+    for pose in check:
+        furnished.place_robot(pose)
+        fast, slow = furnished.tof_ranges(), _naive_ranges(furnished)
+        in_range = (fast <= limit) | (slow <= limit)
+        assert np.allclose(fast[in_range], slow[in_range], rtol=1e-9)
+
+    rows: list[tuple[str, int, float]] = []
+    rows.append(
+        (
+            "naive per-ray loop, obstacles",
+            *_rate(furnished, check, lambda: _naive_ranges(furnished)),
+        )
+    )
+    rows.append(("vectorised cast, bare floor", *_rate(bare, poses, bare.tof_ranges)))
+    rows.append(("vectorised cast, obstacles", *_rate(furnished, poses, furnished.tof_ranges)))
+    rows.append(("cast + noise (scan), obstacles", *_rate(furnished, poses, furnished.scan)))
+
+    def live() -> None:
+        furnished.command_wheels(400, 400)
+        furnished.step(1 / SCAN_RATE_HZ)
+        furnished.scan()
+
+    furnished.place_robot(hallway_pose(furnished.floor, 2000, -400))
+    start = time.perf_counter()
+    for _ in range(args.scans):
+        live()
+    rows.append(("step 20 ms + scan, obstacles", args.scans, time.perf_counter() - start))
+
+    naive_rate = rows[0][1] / rows[0][2]
+    rays = furnished.sensors.rays_per_sensor
+    segments = len(furnished.surfaces().segments)
+    cylinders = len(furnished.surfaces().cylinders)
+    print(
+        f"8 sensors x {rays} rays, CS building floor 2: {segments} segments, "
+        f"{cylinders} cylinders with obstacles; target >= 1000 scans/s"
+    )
+    print()
+    print("| case | scans | wall s | scans/s | x real time @ 50 Hz | vs naive |")
+    print("|---|---:|---:|---:|---:|---:|")
+    for name, n, seconds in rows:
+        rate = n / seconds
+        print(
+            f"| {name} | {n} | {seconds:.3f} | {rate:,.0f} | {rate / SCAN_RATE_HZ:,.1f} "
+            f"| {rate / naive_rate:,.0f}x |"
+        )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,207 @@
+"""Floor plan loading, the shipped CS building, geometry queries and validation errors."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from coffeebot.floorplan import FloorPlan, FloorPlanError, load_floorplan, parse_floorplan
+
+from .conftest import CS_BUILDING, EXAMPLE
+
+
+def test_cs_building_has_the_seed_rooms(cs_building: FloorPlan) -> None:
+    floor2, floor3 = cs_building.floor(2), cs_building.floor(3)
+    assert [r for r in cs_building.rooms if r.startswith("2")] == [str(n) for n in range(201, 214)]
+    assert [r for r in cs_building.rooms if r.startswith("3")] == [str(n) for n in range(302, 314)]
+    assert floor2.hallway.width_mm == floor3.hallway.width_mm == 1700
+    assert all(d.recess_mm == 100 for d in floor2.doors if d.kind == "office")
+    assert cs_building.tea_room.floor.level == 2
+
+
+def test_elevator_is_beside_213_and_313_on_both_floors(cs_building: FloorPlan) -> None:
+    for level, neighbour in ((2, "213"), (3, "313")):
+        floor = cs_building.floor(level)
+        elevator = floor.elevator
+        assert elevator is not None
+        left = floor.features("left")
+        assert left[left.index(elevator) - 1].id == neighbour
+    e2, e3 = cs_building.floor(2).elevator, cs_building.floor(3).elevator
+    assert e2 is not None and e3 is not None
+    assert (e2.at_mm, e2.side) == (e3.at_mm, e3.side)
+
+
+def test_no_wall_crosses_the_hallway(cs_building: FloorPlan) -> None:
+    """Every generated segment stays on or behind a wall line, except the two end walls."""
+    for floor in cs_building.floors:
+        for seg in floor.segments:
+            if seg.element.startswith("hallway") and seg.element.endswith(
+                ("start wall", "end wall")
+            ):
+                continue
+            for x, y in ((seg.x0, seg.y0), (seg.x1, seg.y1)):
+                _, d = floor.to_hallway(x, y)
+                assert abs(d) >= 850 - 1e-6, seg
+
+
+def test_angle_zones_have_an_unbroken_wall_on_one_side(cs_building: FloorPlan) -> None:
+    """The seed's red zones avoid doors: with the side sensors 277 mm apart and the cone
+    spreading ~200 mm at 850 mm, one side must be plain wall 400 mm beyond the zone."""
+    for floor in cs_building.floors:
+        for zone in floor.angle_zones:
+            lo, hi = zone.from_mm - 400, zone.to_mm + 400
+            clear = [
+                side
+                for side in ("left", "right")
+                if all(f.span[1] < lo or f.span[0] > hi for f in floor.features(side))
+            ]
+            assert clear, f"floor {floor.level} zone {zone.id}"
+
+
+def test_hallway_frame_round_trip_on_a_diagonal_hallway(
+    plan_dict: Callable[..., dict[str, Any]],
+) -> None:
+    floor = parse_floorplan(plan_dict(start=[1000, 1000], end=[8071.07, 8071.07])).floors[0]
+    assert floor.hallway.heading_deg == pytest.approx(45.0)
+    x, y = floor.from_hallway(2000, 300)
+    assert floor.to_hallway(x, y) == pytest.approx((2000, 300))
+    assert (x, y) == pytest.approx(
+        (
+            1000 + 2000 * math.sqrt(0.5) - 300 * math.sqrt(0.5),
+            1000 + 2000 * math.sqrt(0.5) + 300 * math.sqrt(0.5),
+        )
+    )
+
+
+def test_queries(tiny_plan: FloorPlan) -> None:
+    floor = tiny_plan.floors[0]
+    door = floor.feature_at(5300, "right")
+    assert door is not None and door.id == "101"
+    assert floor.feature_at(5300, "left") is None
+    assert floor.feature_at(5500, "right", margin_mm=60) is door
+    nearest = floor.nearest_door(6900)
+    assert nearest is not None and nearest.room == "Tea"
+    assert tiny_plan.find_room("101").door is door
+    near = {s.element for s in floor.walls_near(4700, -750, 250)}
+    assert near == {"hallway right wall", "door 101 jamb", "door 101"}
+
+
+def test_angle_zone_lookup(cs_building: FloorPlan) -> None:
+    floor = cs_building.floor(2)
+    zone = floor.angle_zone_at(4500, -300)
+    assert zone is not None and zone.id == "Z2a"
+    assert floor.angle_zone_at(4500, -900) is None  # inside the wall, not the hallway
+    assert floor.angle_zone_at(7000, 0) is None
+
+
+def test_door_geometry_is_recessed(tiny_plan: FloorPlan) -> None:
+    floor = tiny_plan.floors[0]
+    leaf = next(s for s in floor.segments if s.element == "door 101")
+    assert (leaf.y0, leaf.y1) == (-950, -950)
+    assert sorted((leaf.x0, leaf.x1)) == [4550, 5450]
+    assert leaf.z_top == 2100
+
+
+def test_example_plan_loads() -> None:
+    plan = load_floorplan(EXAMPLE)
+    assert plan.rooms == ["101", "102"]
+    assert plan.tea_room.door.room == "Kitchen"
+
+
+# --- errors name the file, the element and the problem -------------------------------------
+
+
+def _error(raw: dict[str, Any]) -> FloorPlanError:
+    with pytest.raises(FloorPlanError) as info:
+        parse_floorplan(raw, "plans/bad.toml")
+    assert isinstance(info.value, ValueError)
+    return info.value
+
+
+def test_error_names_the_door_and_field(plan_dict: Callable[..., dict[str, Any]]) -> None:
+    raw = plan_dict()
+    raw["floors"][0]["doors"][0]["width_mm"] = -5
+    error = _error(raw)
+    assert error.element == "floor 1 / door 101"
+    assert str(error).startswith("plans/bad.toml: floor 1 / door 101: width_mm:")
+
+
+def test_error_for_unknown_field(plan_dict: Callable[..., dict[str, Any]]) -> None:
+    raw = plan_dict()
+    raw["floors"][0]["anchors"][1]["height"] = 3
+    error = _error(raw)
+    assert error.element == "floor 1 / anchor A2"
+    assert "height" in error.problem
+
+
+@pytest.mark.parametrize(
+    ("change", "element", "problem"),
+    [
+        (lambda f: f["doors"][0].update(at_mm=9800), "floor 1 / door 101", "outside the hallway"),
+        (
+            lambda f: f["doors"].append({"room": "102", "side": "right", "at_mm": 5500}),
+            "floor 1 / door 102",
+            "overlaps 101",
+        ),
+        (
+            lambda f: f["anchors"].append({"id": "A1", "x_mm": 0, "y_mm": 0}),
+            "floor 1 / anchor A1",
+            "duplicate id",
+        ),
+        (
+            lambda f: f.setdefault("angle_zones", []).append(
+                {"id": "Z", "from_mm": 9000, "to_mm": 12000}
+            ),
+            "floor 1 / angle zone Z",
+            "outside the hallway",
+        ),
+        (lambda f: f["doors"].pop(), "floor plan", "tea_room"),
+    ],
+)
+def test_consistency_errors(
+    plan_dict: Callable[..., dict[str, Any]],
+    change: Callable[[dict[str, Any]], None],
+    element: str,
+    problem: str,
+) -> None:
+    raw = plan_dict()
+    change(raw["floors"][0])
+    error = _error(raw)
+    assert error.element == element
+    assert problem in error.problem
+
+
+def test_zone_must_be_ordered(plan_dict: Callable[..., dict[str, Any]]) -> None:
+    raw = plan_dict()
+    raw["floors"][0]["angle_zones"] = [{"id": "Z9", "from_mm": 3000, "to_mm": 2000}]
+    error = _error(raw)
+    assert error.element == "floor 1 / angle zone Z9"
+    assert "greater than from_mm" in error.problem
+
+
+def test_several_floors_need_an_elevator(plan_dict: Callable[..., dict[str, Any]]) -> None:
+    raw = plan_dict()
+    second = {"level": 2, "hallway": {"start": [0, 0], "end": [5000, 0]}}
+    raw["floors"].append(second)
+    assert _error(raw).element == "floor 1"
+
+
+def test_file_errors_name_the_file(tmp_path: Path) -> None:
+    bad = tmp_path / "broken.toml"
+    bad.write_text("name = 'x'\n[[floors]\n")
+    with pytest.raises(FloorPlanError, match=r"broken\.toml: TOML syntax"):
+        load_floorplan(bad)
+    with pytest.raises(FloorPlanError, match=r"missing\.toml: file"):
+        load_floorplan(tmp_path / "missing.toml")
+
+
+def test_shipped_file_path_is_in_errors(tmp_path: Path) -> None:
+    text = CS_BUILDING.read_text().replace('room = "205"', 'room = "203"', 1)
+    copy = tmp_path / "cs.toml"
+    copy.write_text(text)
+    with pytest.raises(FloorPlanError, match=r"cs\.toml: floor 2 / door 203: duplicate id"):
+        load_floorplan(copy)

@@ -1,0 +1,104 @@
+"""Offline hallway traces and the SVG rendering of floor plans."""
+
+from __future__ import annotations
+
+import argparse
+import io
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from coffeebot import cli
+from coffeebot.floorplan import FloorPlan
+from coffeebot.floorplan_svg import add_render_arguments, render_command, render_svg
+from coffeebot.messages import ReadingStatus
+from coffeebot.sim.world import RobotSpec, World
+from coffeebot.sim.world.trace import hallway_pass, hallway_pose, write_trace_csv
+
+from .conftest import CS_BUILDING
+
+
+def _pass(plan: FloorPlan, robot: RobotSpec, *, steer: bool) -> tuple[World, list]:
+    floor = plan.floor(2)
+    world = World(plan, robot, floor=2, pose=hallway_pose(floor, 2000, -400), seed=4)
+    return world, hallway_pass(world, speed_mm_s=300, to_s_mm=8000, steer=steer)
+
+
+def test_pass_shows_the_door_recess_on_the_right_sensors(
+    cs_building: FloorPlan, board_robot: RobotSpec
+) -> None:
+    """Room 202's door (s 5550..6450, recessed 100 mm) on the right, as in seed Figure 3."""
+    world, rows = _pass(cs_building, board_robot, steer=True)
+    assert world.collisions == []
+    assert rows[-1].s_mm >= 8000
+    assert np.diff([r.t_s for r in rows]) == pytest.approx(0.1)
+    front_right = [
+        (r.s_mm + 138.5, r.readings[1]) for r in rows if r.readings[1].status is ReadingStatus.VALID
+    ]
+    wall = [d for s, (_, d) in front_right if 3500 < s < 5300]
+    door = [d for s, (_, d) in front_right if 5800 < s < 6200]
+    assert 90 <= np.median(door) - np.median(wall) <= 110
+    assert abs(np.median(wall) - (850 - 400 - 255)) < 15
+
+
+def test_open_loop_pass_drifts_into_the_wall(
+    cs_building: FloorPlan, board_robot: RobotSpec
+) -> None:
+    world, rows = _pass(cs_building, board_robot, steer=False)
+    assert world.collisions and world.collisions[0].element == "hallway right wall"
+    assert rows[-1].pose.heading_deg < -3
+
+
+def test_trace_csv(cs_building: FloorPlan, board_robot: RobotSpec) -> None:
+    _, rows = _pass(cs_building, board_robot, steer=True)
+    out = io.StringIO()
+    write_trace_csv(rows[:3], out)
+    lines = out.getvalue().splitlines()
+    assert lines[0].startswith("t_s,x_mm,y_mm,heading_deg,s_mm,d_mm,status_0,distance_0_mm")
+    assert len(lines) == 4
+    assert lines[1].split(",")[6] in {s.value for s in ReadingStatus}
+
+
+def test_svg_has_every_room_zone_and_anchor(cs_building: FloorPlan) -> None:
+    svg = render_svg(cs_building)
+    root = ET.fromstring(svg)
+    texts = {t.text for t in root.iter("{http://www.w3.org/2000/svg}text")}
+    assert set(cs_building.rooms) <= texts
+    assert {"Tea room", "elevator", "Floor 2", "Floor 3"} <= texts
+    zones = [
+        p for p in root.iter("{http://www.w3.org/2000/svg}polygon") if p.get("class") == "zone"
+    ]
+    assert len(zones) == sum(len(f.angle_zones) for f in cs_building.floors)
+    anchors = [c for c in root.iter("{http://www.w3.org/2000/svg}circle")]
+    assert len(anchors) == sum(len(f.anchors) for f in cs_building.floors)
+
+
+def _args(*argv: str) -> argparse.Namespace:
+    parser = argparse.ArgumentParser()
+    add_render_arguments(parser)
+    return parser.parse_args(list(argv))
+
+
+def test_render_command_writes_one_floor(tmp_path: Path) -> None:
+    out = tmp_path / "floor3.svg"
+    assert render_command(_args(str(CS_BUILDING), "-o", str(out), "--floor", "3")) == 0
+    text = out.read_text()
+    assert 'id="floor-3"' in text and 'id="floor-2"' not in text
+
+
+def test_render_command_reports_a_bad_plan(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[[floors]]\nlevel = 1\n")
+    assert render_command(_args(str(bad), "-o", str(tmp_path / "x.svg"))) == 2
+    err = capsys.readouterr().err
+    assert "bad.toml: floor 1: hallway: Field required" in err
+
+
+def test_cli_renders_a_floor_plan(tmp_path: Path) -> None:
+    out = tmp_path / "plan.svg"
+    assert cli.main(["floorplan", "render", str(CS_BUILDING), "-o", str(out)]) == 0
+    assert ET.fromstring(out.read_text()).tag == "{http://www.w3.org/2000/svg}svg"
