@@ -189,6 +189,14 @@ class OperatorEvent(Message):
     source: str = "web"
 
 
+class OrderUpdate(Message):
+    """The orders module stored a change to an order; pages showing orders refresh from it."""
+
+    order_id: str
+    status: OrderStatus
+    detail: str = ""
+
+
 HEALTH = Topic("system/health", Health, Delivery.RELIABLE, queue_size=1024)
 RANGE_SCAN = Topic("tof/scan", RangeScan, Delivery.LATEST)
 UWB_FIX = Topic("uwb/fix", UwbFix, Delivery.LATEST)
@@ -199,6 +207,7 @@ COLLISION = Topic("safety/collision", CollisionStatus, Delivery.LATEST)
 ORDER_DISPATCH = Topic("orders/dispatch", OrderDispatch, Delivery.RELIABLE)
 DELIVERY_STATUS = Topic("delivery/status", DeliveryUpdate, Delivery.RELIABLE)
 OPERATOR_EVENT = Topic("operator/event", OperatorEvent, Delivery.RELIABLE)
+ORDER_UPDATE = Topic("orders/update", OrderUpdate, Delivery.RELIABLE)
 
 ALL_TOPICS: tuple[Topic, ...] = (
     HEALTH,
@@ -211,4 +220,5 @@ ALL_TOPICS: tuple[Topic, ...] = (
     ORDER_DISPATCH,
     DELIVERY_STATUS,
     OPERATOR_EVENT,
+    ORDER_UPDATE,
 )
