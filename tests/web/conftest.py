@@ -2,16 +2,21 @@
 
 from __future__ import annotations
 
-from collections.abc import AsyncIterator, Iterator
+from collections.abc import AsyncIterator, Awaitable, Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
+from aiohttp import web
+from aiohttp.test_utils import TestClient
 
 from coffeebot.board import Board, Subscription
+from coffeebot.config import WebConfig
 from coffeebot.daemon import Daemon
 from coffeebot.messages import ALL_TOPICS, ORDER_UPDATE, OrderUpdate
 from coffeebot.modules.orders import OrdersModule
 from coffeebot.store import NewOrder, OrderRules, OrderStore
+from coffeebot.web import RoomChoice, WebDeps, create_app
 
 RULES = OrderRules(rooms={"201", "210", "302"}, drinks={"latte", "tea"})
 
@@ -53,3 +58,33 @@ async def orders(board: Board, store: OrderStore) -> AsyncIterator[OrdersModule]
     await daemon.start()
     yield module
     await daemon.shutdown()
+
+
+TOKEN = "operator-secret"
+ROOMS = [
+    RoomChoice(id="201", floor=2),
+    RoomChoice(id="210", floor=2),
+    RoomChoice(id="302", floor=3),
+]
+
+
+def web_deps(board: Board, orders: OrdersModule, **fields: Any) -> WebDeps:
+    config = WebConfig(drinks=sorted(RULES.drinks), max_body_bytes=2048)
+    return WebDeps(
+        board=board,
+        bus=board,
+        orders=orders,
+        rooms=ROOMS,
+        config=config,
+        operator_token=TOKEN,
+        **fields,
+    )
+
+
+@pytest.fixture
+async def client(
+    aiohttp_client: Callable[[web.Application], Awaitable[TestClient]],
+    board: Board,
+    orders: OrdersModule,
+) -> TestClient:
+    return await aiohttp_client(create_app(web_deps(board, orders, modules=[orders])))
