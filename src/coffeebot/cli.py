@@ -60,6 +60,7 @@ async def _run_daemon(config: RobotConfig) -> None:
             modules=[orders],
             sensors=config.tof.sensors,
             geometry=config.geometry,
+            health=lambda: daemon.health(),
         )
     )
     daemon = Daemon(board, modules=[orders, web], supervision=config.supervision)

@@ -1,7 +1,7 @@
 """The web server as a board task: serves the app from the daemon's event loop.
 
 It declares what it really does on the board: it publishes the operator's e-stop and events,
-and reads order updates and module health for the live pages. The inspector's view of every
+and reads order updates for the live order pages. The inspector's view of every
 topic's statistics and latest value comes from the board it is given, read only.
 """
 
@@ -12,7 +12,7 @@ import dataclasses
 
 from aiohttp import web
 
-from coffeebot.messages import ESTOP, HEALTH, OPERATOR_EVENT, ORDER_UPDATE
+from coffeebot.messages import ESTOP, OPERATOR_EVENT, ORDER_UPDATE
 from coffeebot.modules.base import Module, ModuleContext
 from coffeebot.web import WebDeps, create_app
 
@@ -26,7 +26,7 @@ class WebModule(Module):
     """
 
     name = "web"
-    inputs = (HEALTH, ORDER_UPDATE)
+    inputs = (ORDER_UPDATE,)
     outputs = (ESTOP, OPERATOR_EVENT)
 
     def __init__(self, deps: WebDeps) -> None:

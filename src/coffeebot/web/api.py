@@ -160,8 +160,7 @@ async def order_events(request: web.Request) -> web.StreamResponse:
 
 @routes.get("/api/board")
 async def board_snapshot(request: web.Request) -> web.Response:
-    deps = request.app[DEPS]
-    frame = inspector_frame(deps.board, request.app[CHANGES], deps.poses, list(deps.sensors))
+    frame = inspector_frame(request.app[DEPS])
     return web.json_response(text=frame.model_dump_json())
 
 
@@ -172,7 +171,7 @@ async def board_stream(request: web.Request) -> web.StreamResponse:
     changes = request.app[CHANGES]
     response = await open_event_stream(request)
     while not changes.closed.is_set():
-        frame = inspector_frame(deps.board, changes, deps.poses, list(deps.sensors))
+        frame = inspector_frame(deps)
         if not await send_event(response, frame.model_dump_json()):
             break
         await sleep_unless_closed(changes, deps.config.stream_period_s)

@@ -14,6 +14,7 @@ from pydantic import BaseModel
 
 from coffeebot.board import Board, Envelope, Subscription, Topic
 from coffeebot.config import GeometryConfig, TofSensorConfig, WebConfig
+from coffeebot.messages import Health
 from coffeebot.modules.base import Module
 from coffeebot.modules.orders import OrdersModule
 from coffeebot.web.livemap import PoseSource
@@ -57,3 +58,5 @@ class WebDeps:
     poses: PoseSource | None = None
     sensors: Sequence[TofSensorConfig] = ()
     geometry: GeometryConfig = field(default_factory=GeometryConfig)
+    health: Callable[[], Sequence[Health]] | None = None
+    """Module health as the supervisor sees it now (``Daemon.health``)."""

@@ -16,11 +16,10 @@ import contextlib
 from aiohttp import web
 from pydantic import BaseModel
 
-from coffeebot.board import Board, BoardSnapshot
-from coffeebot.config import TofSensorConfig
-from coffeebot.messages import ESTOP, HEALTH, ORDER_UPDATE, EStop, Health
-from coffeebot.web.deps import BoardIO
-from coffeebot.web.livemap import MapFrame, PoseSource, map_frame
+from coffeebot.board import BoardSnapshot
+from coffeebot.messages import ESTOP, ORDER_UPDATE, EStop, Health
+from coffeebot.web.deps import BoardIO, WebDeps
+from coffeebot.web.livemap import MapFrame, map_frame
 
 VALUE_CHARS = 600
 """Last values longer than this are cut in the inspector: it shows values, it is no recorder."""
@@ -29,11 +28,10 @@ HEARTBEAT_S = 15.0
 
 
 class Changes:
-    """Version counter for orders, and the latest health report of every module."""
+    """A version number that moves whenever an order changes, and the app's closing flag."""
 
     def __init__(self) -> None:
         self.version = 0
-        self.health: dict[str, Health] = {}
         self.closed = asyncio.Event()
         self._changed = asyncio.Event()
 
@@ -60,23 +58,10 @@ class Changes:
         self.closed.set()
 
     async def pump(self, bus: BoardIO) -> None:
-        """Follow order updates and health reports until cancelled."""
-
-        async def orders() -> None:
-            with bus.subscribe(ORDER_UPDATE) as sub:
-                async for _ in sub:
-                    self.bump()
-
-        async def health() -> None:
-            with bus.subscribe(HEALTH) as sub:
-                async for envelope in sub:
-                    report = envelope.msg
-                    if report.component is None:
-                        self.health[report.module] = report
-
-        async with asyncio.TaskGroup() as group:
-            group.create_task(orders())
-            group.create_task(health())
+        """Follow order updates until cancelled."""
+        with bus.subscribe(ORDER_UPDATE) as sub:
+            async for _ in sub:
+                self.bump()
 
 
 class TopicValue(BaseModel):
@@ -94,12 +79,8 @@ class InspectorFrame(BaseModel):
     map: MapFrame
 
 
-def inspector_frame(
-    board: Board,
-    changes: Changes,
-    poses: PoseSource | None,
-    sensors: list[TofSensorConfig],
-) -> InspectorFrame:
+def inspector_frame(deps: WebDeps) -> InspectorFrame:
+    board = deps.board
     values = {}
     for topic in board.topics:
         envelope = board.latest(topic)
@@ -112,9 +93,9 @@ def inspector_frame(
     return InspectorFrame(
         board=board.snapshot(),
         values=values,
-        health=sorted(changes.health.values(), key=lambda h: h.module),
+        health=list(deps.health()) if deps.health is not None else [],
         estop=None if estop is None else estop.msg,
-        map=map_frame(board, poses, sensors),
+        map=map_frame(board, deps.poses, deps.sensors),
     )
 
 
