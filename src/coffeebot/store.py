@@ -183,13 +183,14 @@ class OrderStore:
 
         return await self._call(select)
 
-    async def with_status(self, statuses: Sequence[OrderStatus]) -> list[Order]:
-        """Orders in any of ``statuses``, in order of arrival."""
+    async def with_status(self, statuses: Sequence[OrderStatus], limit: int = -1) -> list[Order]:
+        """Orders in any of ``statuses``, in order of arrival, at most ``limit`` (-1: all)."""
 
         def select() -> list[Order]:
             rows = self._db.execute(
-                f"SELECT {_COLUMNS} FROM orders WHERE status IN ({_marks(statuses)}) ORDER BY seq",
-                tuple(statuses),
+                f"SELECT {_COLUMNS} FROM orders WHERE status IN ({_marks(statuses)})"
+                " ORDER BY seq LIMIT ?",
+                (*statuses, limit),
             ).fetchall()
             return [_order(row) for row in rows]
 

@@ -141,7 +141,7 @@ class OrdersModule(Module):
         """Hand the oldest queued order to navigation unless one is already out."""
         async with self._lock:
             while self._current is None:
-                queued = await self.store.with_status((OrderStatus.QUEUED,))
+                queued = await self.store.with_status((OrderStatus.QUEUED,), limit=1)
                 if not queued:
                     return
                 head = queued[0]
