@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import logging
+import os
 import sys
 from pathlib import Path
 
@@ -14,6 +15,10 @@ from coffeebot.daemon import Daemon
 from coffeebot.floorplan_svg import add_render_arguments, render_command
 from coffeebot.logs import setup_logging
 from coffeebot.messages import ALL_TOPICS
+from coffeebot.modules.orders import OrdersModule
+from coffeebot.modules.web import WebModule
+from coffeebot.store import OrderStore
+from coffeebot.web import WebDeps
 
 log = logging.getLogger("coffeebot")
 
@@ -50,9 +55,29 @@ def build_parser() -> argparse.ArgumentParser:
 
 async def _run_daemon(config: RobotConfig) -> None:
     board = Board(ALL_TOPICS)
-    daemon = Daemon(board, modules=[], supervision=config.supervision)
+    store = OrderStore(config.store.path)
+    orders = OrdersModule(store)
+    # Rooms, floor SVGs and the pose source come from the floor plan and the state module.
+    web = WebModule(
+        WebDeps(
+            board=board,
+            bus=board,
+            orders=orders,
+            rooms=[],
+            config=config.web,
+            operator_token=os.environ.get(config.web.operator_token_env),
+            modules=[orders],
+            sensors=config.tof.sensors,
+            geometry=config.geometry,
+            health=lambda: daemon.health(),
+        )
+    )
+    daemon = Daemon(board, modules=[orders, web], supervision=config.supervision)
     daemon.install_signal_handlers()
-    await daemon.run()
+    try:
+        await daemon.run()
+    finally:
+        store.close()
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -200,6 +200,10 @@ class WebConfig(Section):
     port: int = Field(8080, ge=0, le=65535)
     operator_token_env: str = "COFFEEBOT_OPERATOR_TOKEN"
     drinks: list[str] = ["espresso", "americano", "latte", "cappuccino", "tea"]
+    max_body_bytes: int = Field(16_384, gt=0, description="larger request bodies get 413")
+    order_burst: int = Field(5, ge=1, description="orders one client may place back to back")
+    order_refill_s: float = Field(12.0, gt=0, description="one more order allowed per this")
+    stream_period_s: float = Field(0.5, gt=0, description="inspector stream frame interval")
 
 
 class StoreConfig(Section):

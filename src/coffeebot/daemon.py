@@ -77,6 +77,16 @@ class Daemon:
         for sig in (signal.SIGINT, signal.SIGTERM):
             loop.add_signal_handler(sig, self.request_stop, f"signal {sig.name}")
 
+    def health(self) -> list[Health]:
+        """Every module's status as the supervisor sees it now, for the inspector.
+
+        The health topic carries changes; a page opened later needs the current state.
+        """
+        return [
+            Health(module=s.module.name, status=s.status, restarts=s.restarts, detail=s.last_error)
+            for s in self.states.values()
+        ]
+
     def _report(self, state: ModuleState, detail: str = "") -> None:
         self.board.publish(
             HEALTH,

@@ -284,6 +284,14 @@ class CurrentState(Message):
     """Age in seconds of each input the estimate used (uwb, odometry, angle, door)."""
 
 
+class OrderUpdate(Message):
+    """The orders module stored a change to an order; pages showing orders refresh from it."""
+
+    order_id: str
+    status: OrderStatus
+    detail: str = ""
+
+
 HEALTH = Topic("system/health", Health, Delivery.RELIABLE, queue_size=1024)
 RANGE_SCAN = Topic("tof/scan", RangeScan, Delivery.LATEST)
 UWB_FIX = Topic("uwb/fix", UwbFix, Delivery.LATEST)
@@ -298,6 +306,7 @@ ANGLE = Topic("perception/angle", AngleEstimate, Delivery.LATEST)
 DOOR = Topic("perception/door", DoorEvent, Delivery.RELIABLE)
 MOVE_INSTRUCTION = Topic("nav/instruction", MoveInstruction, Delivery.LATEST)
 CURRENT_STATE = Topic("state/current", CurrentState, Delivery.LATEST)
+ORDER_UPDATE = Topic("orders/update", OrderUpdate, Delivery.RELIABLE)
 
 ALL_TOPICS: tuple[Topic, ...] = (
     HEALTH,
@@ -314,4 +323,5 @@ ALL_TOPICS: tuple[Topic, ...] = (
     DOOR,
     MOVE_INSTRUCTION,
     CURRENT_STATE,
+    ORDER_UPDATE,
 )

@@ -1,0 +1,6 @@
+"""The web app: order form, order status, board inspector, operator actions, JSON API."""
+
+from coffeebot.web.app import create_app
+from coffeebot.web.deps import RoomChoice, WebDeps
+
+__all__ = ["RoomChoice", "WebDeps", "create_app"]

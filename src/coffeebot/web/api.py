@@ -1,0 +1,206 @@
+"""The JSON API: orders, the board, operator actions. Thin handlers over the orders module."""
+
+from __future__ import annotations
+
+from aiohttp import web
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from coffeebot.messages import (
+    ESTOP,
+    OPERATOR_EVENT,
+    EStop,
+    OperatorEvent,
+    OrderStatus,
+)
+from coffeebot.modules.orders import OrderError
+from coffeebot.store import NewOrder, Order, OrderRules
+from coffeebot.web.context import (
+    CHANGES,
+    DEPS,
+    LIMITER,
+    client_key,
+    is_operator,
+    validation_error,
+)
+from coffeebot.web.live import (
+    HEARTBEAT_S,
+    inspector_frame,
+    open_event_stream,
+    send_event,
+    sleep_unless_closed,
+)
+
+routes = web.RouteTableDef()
+
+ORDER_ID = "{order_id:[A-Za-z0-9_-]{1,32}}"
+
+
+class EStopRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid", str_strip_whitespace=True)
+
+    engaged: bool
+    reason: str = Field("", max_length=200)
+
+
+def order_rules(request: web.Request) -> OrderRules:
+    deps = request.app[DEPS]
+    return OrderRules(rooms={r.id for r in deps.rooms}, drinks=set(deps.config.drinks))
+
+
+def check_rate(request: web.Request) -> None:
+    """Refuse with 429 when this client has placed too many orders lately."""
+    wait = request.app[LIMITER].take(client_key(request))
+    if wait:
+        raise web.HTTPTooManyRequests(
+            text=f"too many orders from this address; try again in {wait:.0f} s",
+            headers={"Retry-After": str(max(1, round(wait)))},
+        )
+
+
+def order_json(order: Order, status: int = 200) -> web.Response:
+    return web.json_response(text=order.model_dump_json(), status=status)
+
+
+def operator_only(request: web.Request) -> None:
+    if not is_operator(request):
+        raise web.HTTPUnauthorized(
+            text="operator token required",
+            headers={"WWW-Authenticate": 'Bearer realm="coffeebot operator"'},
+        )
+
+
+@routes.post("/api/orders")
+async def create_order(request: web.Request) -> web.Response:
+    check_rate(request)
+    body = await request.read()
+    try:
+        new = NewOrder.model_validate_json(body, context=order_rules(request))
+    except ValidationError as exc:
+        return validation_error(exc, "order")
+    order = await request.app[DEPS].orders.place(new, client_key(request))
+    response = order_json(order, status=201)
+    response.headers["Location"] = f"/api/orders/{order.id}"
+    return response
+
+
+@routes.get("/api/orders")
+async def list_orders(request: web.Request) -> web.Response:
+    """Every order that has not ended, for operators (it shows customers' names)."""
+    operator_only(request)
+    orders = await request.app[DEPS].orders.store.active()
+    return web.json_response(text="[" + ",".join(o.model_dump_json() for o in orders) + "]")
+
+
+@routes.get(f"/api/orders/{ORDER_ID}")
+async def get_order(request: web.Request) -> web.Response:
+    return order_json(await request.app[DEPS].orders.get(request.match_info["order_id"]))
+
+
+@routes.delete(f"/api/orders/{ORDER_ID}")
+async def cancel_order(request: web.Request) -> web.Response:
+    """Customers cancel while queued; an operator may also cancel an order that is out."""
+    orders = request.app[DEPS].orders
+    order_id = request.match_info["order_id"]
+    order = await orders.get(order_id)
+    if order.status is OrderStatus.QUEUED or not is_operator(request):
+        return order_json(await orders.cancel(order_id))
+    if order.status.final:
+        raise OrderError(f"order {order_id!r} has already ended ({order.status.value})")
+    # The robot holds the cup: navigation ends the delivery and reports it cancelled.
+    publish_event(request, "cancel", order_id)
+    return order_json(order, status=202)
+
+
+def publish_event(request: web.Request, kind: str, order_id: str) -> None:
+    request.app[DEPS].bus.publish(
+        OPERATOR_EVENT, OperatorEvent.model_validate({"kind": kind, "order_id": order_id})
+    )
+
+
+async def _event_if(request: web.Request, kind: str, required: OrderStatus) -> web.Response:
+    order = await request.app[DEPS].orders.get(request.match_info["order_id"])
+    if order.status is not required:
+        raise OrderError(f"order {order.id!r} is {order.status.value}, not {required.value}")
+    publish_event(request, kind, order.id)
+    return order_json(order, status=202)
+
+
+@routes.post(f"/api/orders/{ORDER_ID}/pickup")
+async def confirm_pickup(request: web.Request) -> web.Response:
+    """The customer's "I have my coffee": only once the robot is at their door."""
+    return await _event_if(request, "pickup_confirmed", OrderStatus.ARRIVED)
+
+
+@routes.post(f"/api/orders/{ORDER_ID}/cup-loaded")
+async def cup_loaded(request: web.Request) -> web.Response:
+    """Staff in the tea room put the cup on the robot."""
+    operator_only(request)
+    return await _event_if(request, "cup_loaded", OrderStatus.PREPARING)
+
+
+@routes.get(f"/api/orders/{ORDER_ID}/events")
+async def order_events(request: web.Request) -> web.StreamResponse:
+    """The order as JSON each time it (or its place in the queue) changes; ends when it ends."""
+    orders = request.app[DEPS].orders
+    changes = request.app[CHANGES]
+    order_id = request.match_info["order_id"]
+    last = await orders.get(order_id)
+    response = await open_event_stream(request)
+    payload: str | None = last.model_dump_json()
+    while not changes.closed.is_set() and await send_event(response, payload):
+        if last.status.final:
+            break
+        seen = changes.version
+        await changes.wait(seen, HEARTBEAT_S)
+        order = await orders.get(order_id)
+        payload = None if order == last else order.model_dump_json()
+        last = order
+    return response
+
+
+@routes.get("/api/board")
+async def board_snapshot(request: web.Request) -> web.Response:
+    frame = inspector_frame(request.app[DEPS])
+    return web.json_response(text=frame.model_dump_json())
+
+
+@routes.get("/api/board/stream")
+async def board_stream(request: web.Request) -> web.StreamResponse:
+    """An inspector frame every ``stream_period_s``, until the client or the server goes."""
+    deps = request.app[DEPS]
+    changes = request.app[CHANGES]
+    response = await open_event_stream(request)
+    while not changes.closed.is_set():
+        frame = inspector_frame(deps)
+        if not await send_event(response, frame.model_dump_json()):
+            break
+        await sleep_unless_closed(changes, deps.config.stream_period_s)
+    return response
+
+
+@routes.post("/api/estop")
+async def estop(request: web.Request) -> web.Response:
+    """Engage or release the emergency stop (motion refuses to move while it is engaged)."""
+    operator_only(request)
+    try:
+        wanted = EStopRequest.model_validate_json(await request.read())
+    except ValidationError as exc:
+        return validation_error(exc, "e-stop request")
+    msg = EStop(engaged=wanted.engaged, source="web operator", reason=wanted.reason)
+    request.app[DEPS].bus.publish(ESTOP, msg)
+    return web.json_response(text=msg.model_dump_json())
+
+
+@routes.get("/api/map/{floor:-?[0-9]{1,3}}.svg")
+async def floor_map(request: web.Request) -> web.Response:
+    source = request.app[DEPS].floor_svg
+    svg = source(int(request.match_info["floor"])) if source is not None else None
+    if svg is None:
+        raise web.HTTPNotFound(text="no floor plan for this floor")
+    return web.Response(text=svg, content_type="image/svg+xml")
+
+
+@routes.get("/healthz")
+async def healthz(request: web.Request) -> web.Response:
+    """Liveness for systemd and load balancers; also the benchmark's baseline request."""
+    return web.Response(text="ok")

@@ -1,0 +1,95 @@
+"""The aiohttp application: ``create_app(deps)`` is the only way it is built.
+
+Routes live in :mod:`coffeebot.web.api` (JSON) and :mod:`coffeebot.web.pages` (HTML); this
+module adds what applies to all of them: the body size limit, errors as JSON under ``/api``
+and as a page elsewhere, security headers, and the background task that follows the board.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+from collections.abc import AsyncIterator, Awaitable, Callable
+from pathlib import Path
+
+from aiohttp import web
+
+from coffeebot.modules.orders import OrderError
+from coffeebot.web import api, pages
+from coffeebot.web.context import CHANGES, DEPS, LIMITER, TEMPLATES, RateLimiter, error
+from coffeebot.web.deps import WebDeps
+from coffeebot.web.live import Changes
+
+log = logging.getLogger(__name__)
+
+STATIC = Path(__file__).parent / "static"
+
+SECURITY_HEADERS = {
+    # No inline script anywhere, so injected markup could not run even if it got through.
+    "Content-Security-Policy": (
+        "default-src 'self'; script-src 'self'; style-src 'self' 'unsafe-inline'; "
+        "img-src 'self' data:; object-src 'none'; base-uri 'none'; frame-ancestors 'none'"
+    ),
+    "X-Content-Type-Options": "nosniff",
+    # An order's id in its URL is what lets its holder cancel it: never send it elsewhere.
+    "Referrer-Policy": "no-referrer",
+}
+
+Handler = Callable[[web.Request], Awaitable[web.StreamResponse]]
+
+
+def _error_response(request: web.Request, status: int, message: str) -> web.Response:
+    if request.path.startswith("/api/"):
+        return error(status, message)
+    return pages.render(request, "error.html", status=status, status_code=status, message=message)
+
+
+@web.middleware
+async def errors_and_headers(request: web.Request, handler: Handler) -> web.StreamResponse:
+    try:
+        response = await handler(request)
+    except OrderError as exc:
+        response = _error_response(request, exc.status, str(exc))
+    except web.HTTPException as exc:
+        if exc.status < 400:
+            raise
+        response = _error_response(request, exc.status, exc.text or exc.reason)
+        response.headers.update(
+            {k: v for k, v in exc.headers.items() if k in ("Retry-After", "WWW-Authenticate")}
+        )
+    if not response.prepared:
+        response.headers.update(SECURITY_HEADERS)
+    return response
+
+
+def create_app(deps: WebDeps) -> web.Application:
+    """The web app over ``deps``; serve it with ``web.AppRunner`` or aiohttp's test client."""
+    app = web.Application(
+        middlewares=[errors_and_headers], client_max_size=deps.config.max_body_bytes
+    )
+    app[DEPS] = deps
+    app[CHANGES] = Changes()
+    app[LIMITER] = RateLimiter(
+        deps.config.order_burst, deps.config.order_refill_s, deps.board.clock
+    )
+    app[TEMPLATES] = pages.templates()
+    app.add_routes(api.routes)
+    app.add_routes(pages.routes)
+    app.router.add_static("/static", STATIC)
+    app.cleanup_ctx.append(_follow_board)
+    app.on_shutdown.append(_end_streams)
+    return app
+
+
+async def _follow_board(app: web.Application) -> AsyncIterator[None]:
+    pump = asyncio.create_task(app[CHANGES].pump(app[DEPS].bus), name="web:follow-board")
+    yield
+    pump.cancel()
+    with contextlib.suppress(asyncio.CancelledError):
+        await pump
+
+
+async def _end_streams(app: web.Application) -> None:
+    """Live pages hold their responses open; ending them lets the server stop promptly."""
+    app[CHANGES].close()

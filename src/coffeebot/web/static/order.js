@@ -1,0 +1,40 @@
+// Live order status over server-sent events. Text only ever goes in through textContent.
+"use strict";
+(function () {
+  const box = document.getElementById("order");
+  const id = box.dataset.orderId;
+  const statusText = JSON.parse(document.getElementById("status-text-data").textContent);
+  const el = (name) => document.getElementById(name);
+  const finalStates = ["delivered", "cancelled", "failed"];
+
+  function show(order) {
+    box.dataset.status = order.status;
+    el("status-text").textContent = statusText[order.status] || order.status;
+    el("queue").textContent = order.status === "queued" ? `${order.ahead} order(s) ahead of yours` : "";
+    el("detail").textContent = order.detail;
+    el("pickup").hidden = order.status !== "arrived";
+    el("cancel").hidden = order.status !== "queued";
+  }
+
+  const events = new EventSource(`/api/orders/${encodeURIComponent(id)}/events`);
+  events.onopen = () => { el("live").textContent = "live"; };
+  events.onerror = () => { el("live").textContent = "reconnecting…"; };
+  events.onmessage = (event) => {
+    const order = JSON.parse(event.data);
+    show(order);
+    if (finalStates.includes(order.status)) {
+      events.close();
+      el("live").textContent = "";
+    }
+  };
+
+  async function act(method, path) {
+    const response = await fetch(path, { method });
+    const body = await response.json();
+    el("action-error").hidden = response.ok;
+    if (!response.ok) el("action-error").textContent = body.error;
+    else show(body);
+  }
+  el("cancel").addEventListener("click", () => act("DELETE", `/api/orders/${encodeURIComponent(id)}`));
+  el("pickup").addEventListener("click", () => act("POST", `/api/orders/${encodeURIComponent(id)}/pickup`));
+})();

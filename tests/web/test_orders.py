@@ -1,0 +1,149 @@
+"""The orders module: arrival order, one delivery at a time, navigation's reports, restarts."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from coffeebot.board import Board, Subscription
+from coffeebot.daemon import Daemon
+from coffeebot.messages import (
+    ALL_TOPICS,
+    DELIVERY_STATUS,
+    ORDER_DISPATCH,
+    ORDER_UPDATE,
+    DeliveryUpdate,
+    OrderStatus,
+    OrderUpdate,
+)
+from coffeebot.modules.orders import OrderError, OrdersModule, OrdersUnavailable
+from coffeebot.store import OrderStore
+
+from .conftest import new_order
+
+
+def report(board: Board, order_id: str, status: OrderStatus, detail: str = "") -> None:
+    board.publish(DELIVERY_STATUS, DeliveryUpdate(order_id=order_id, status=status, detail=detail))
+
+
+async def until(updates: Subscription[OrderUpdate], order_id: str, status: OrderStatus) -> None:
+    """Read announcements until ``order_id`` reaches ``status`` (the module stored it first)."""
+    async for envelope in updates:
+        if (envelope.msg.order_id, envelope.msg.status) == (order_id, status):
+            return
+
+
+async def test_queue_dispatches_one_at_a_time_in_arrival_order(
+    board: Board, orders: OrdersModule, updates: Subscription[OrderUpdate]
+) -> None:
+    with board.subscribe(ORDER_DISPATCH, name="navigation") as dispatches:
+        first = await orders.place(new_order(name="A"), client="c")
+        second = await orders.place(new_order(name="B", room="302"), client="c")
+        assert first.status is OrderStatus.PREPARING
+        assert second.status is OrderStatus.QUEUED
+        assert second.ahead == 1
+        assert (dispatches.get_nowait()).msg.order_id == first.id
+        assert dispatches.get_nowait() is None
+
+        for status in (OrderStatus.ON_THE_WAY, OrderStatus.ARRIVED, OrderStatus.DELIVERED):
+            report(board, first.id, status)
+        await until(updates, second.id, OrderStatus.PREPARING)
+        assert (await orders.get(first.id)).status is OrderStatus.DELIVERED
+        assert (await dispatches.get()).msg.order_id == second.id
+
+
+async def test_cancel_only_while_queued(orders: OrdersModule) -> None:
+    first = await orders.place(new_order(name="A"), client="c")
+    second = await orders.place(new_order(name="B"), client="c")
+    cancelled = await orders.cancel(second.id)
+    assert cancelled.status is OrderStatus.CANCELLED
+    with pytest.raises(OrderError):
+        await orders.cancel(first.id)
+    with pytest.raises(OrderError):
+        await orders.cancel(second.id)
+
+
+async def test_reports_out_of_sequence_or_for_other_orders_are_ignored(
+    board: Board, orders: OrdersModule, updates: Subscription[OrderUpdate]
+) -> None:
+    first = await orders.place(new_order(name="A"), client="c")
+    queued = await orders.place(new_order(name="B"), client="c")
+    report(board, queued.id, OrderStatus.ON_THE_WAY)  # not the dispatched order
+    report(board, first.id, OrderStatus.DELIVERED)  # cannot skip arriving at the door
+    report(board, first.id, OrderStatus.FAILED, "blocked hallway")
+    await until(updates, queued.id, OrderStatus.PREPARING)
+    failed = await orders.get(first.id)
+    assert (failed.status, failed.detail) == (OrderStatus.FAILED, "blocked hallway")
+
+
+async def test_not_running_answers_unavailable(store: OrderStore) -> None:
+    with pytest.raises(OrdersUnavailable):
+        await OrdersModule(store).place(new_order(), client="c")
+
+
+def start(db_path: Path) -> tuple[Board, OrderStore, OrdersModule, Daemon]:
+    board = Board(ALL_TOPICS)
+    store = OrderStore(db_path)
+    module = OrdersModule(store)
+    return board, store, module, Daemon(board, [module])
+
+
+@pytest.mark.parametrize(
+    "reached", [OrderStatus.ON_THE_WAY, OrderStatus.WAITING_FOR_ELEVATOR, OrderStatus.ARRIVED]
+)
+async def test_daemon_killed_on_the_way_fails_the_order_with_reason(
+    db_path: Path, reached: OrderStatus
+) -> None:
+    board, store, module, daemon = start(db_path)
+    await daemon.start()
+    order = await module.place(new_order(), client="c")
+    waiting = await module.place(new_order(name="B"), client="c")
+    with board.subscribe(ORDER_UPDATE) as updates:
+        report(board, order.id, reached)
+        await until(updates, order.id, reached)
+    kill(daemon, store)
+
+    board, store, module, daemon = start(db_path)
+    with board.subscribe(ORDER_DISPATCH, name="navigation") as dispatches:
+        await daemon.start()
+        dispatched = await dispatches.get()
+    try:
+        failed = await module.get(order.id)
+        assert failed.status is OrderStatus.FAILED
+        assert reached.value in failed.detail
+        assert dispatched.msg.order_id == waiting.id
+    finally:
+        await daemon.shutdown()
+        store.close()
+
+
+async def test_daemon_killed_while_preparing_resumes_the_order_first(db_path: Path) -> None:
+    board, store, module, daemon = start(db_path)
+    await daemon.start()
+    order = await module.place(new_order(), client="c")
+    waiting = await module.place(new_order(name="B"), client="c")
+    kill(daemon, store)
+
+    board, store, module, daemon = start(db_path)
+    with board.subscribe(ORDER_UPDATE) as updates, board.subscribe(ORDER_DISPATCH) as dispatches:
+        await daemon.start()
+        dispatched = await dispatches.get()
+        first = updates.get_nowait()
+    try:
+        assert dispatched.msg.order_id == order.id
+        assert first is not None
+        assert (first.msg.status, first.msg.order_id) == (OrderStatus.QUEUED, order.id)
+        assert "resumed" in first.msg.detail
+        assert (await module.get(waiting.id)).status is OrderStatus.QUEUED
+    finally:
+        await daemon.shutdown()
+        store.close()
+
+
+def kill(daemon: Daemon, store: OrderStore) -> None:
+    """Stop like a killed process: no shutdown hooks, tasks just stop, the file is left as is."""
+    for state in daemon.states.values():
+        assert state.task is not None
+        state.task.cancel()
+    store.close()
