@@ -24,6 +24,10 @@ class ManualClock:
     def now(self) -> float:
         return self._now
 
+    def next_deadline(self) -> float | None:
+        """When the earliest sleeper is due, or None if nothing sleeps on this clock."""
+        return self._sleepers[0][0] if self._sleepers else None
+
     async def sleep(self, seconds: float) -> None:
         future: asyncio.Future[None] = asyncio.get_running_loop().create_future()
         heapq.heappush(self._sleepers, (self._now + max(0.0, seconds), next(self._order), future))
