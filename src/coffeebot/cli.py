@@ -4,15 +4,21 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
+import faulthandler
 import logging
 import sys
 from pathlib import Path
 
 from coffeebot.board import Board
+from coffeebot.board.recording import Player, Recorder, RecordingError, recording_info
+from coffeebot.clock import ScaledClock
 from coffeebot.config import ConfigError, RobotConfig, load_robot_config
 from coffeebot.daemon import Daemon
+from coffeebot.install import install_service
 from coffeebot.logs import setup_logging
 from coffeebot.messages import ALL_TOPICS
+from coffeebot.systemd import Notifier, control_loop_check, run_as_service
 
 log = logging.getLogger("coffeebot")
 
@@ -36,18 +42,82 @@ def build_parser() -> argparse.ArgumentParser:
     _add_common(run)
     sim = sub.add_parser("sim", help="run the daemon on the simulated robot and world")
     _add_common(sim)
+    replay = sub.add_parser("replay", help="republish a recording onto a board")
+    _add_common(replay)
+    replay.add_argument("file", type=Path, help="an MCAP recording")
+    replay.add_argument("--speed", type=float, default=1.0, help="times real time (default 1)")
+    replay.add_argument("--topic", action="append", help="replay only this topic (repeatable)")
+    for p in (run, sim, replay):
+        p.add_argument("--record", type=Path, metavar="FILE.mcap", help="record the board")
+    record = sub.add_parser("record", help="inspect a recording")
+    record.add_argument("--info", type=Path, metavar="FILE", required=True, help="print summary")
+    install = sub.add_parser("install-service", help="install the systemd unit and /etc config")
+    install.add_argument("--root", type=Path, default=Path("/"), help="install under this root")
     return parser
 
 
-async def _run_daemon(config: RobotConfig) -> None:
+def _recorder(
+    board: Board, path: Path | None, config: RobotConfig
+) -> contextlib.AbstractAsyncContextManager[object]:
+    """``--record``: started before the modules, closed after their shutdown is on the board."""
+    if path is None:
+        return contextlib.nullcontext()
+    return Recorder(board, path, metadata={"robot": config.name})
+
+
+async def _run_daemon(config: RobotConfig, record: Path | None) -> None:
+    # systemd's watchdog kills a stalled daemon with SIGABRT: leave its stacks in the journal.
+    faulthandler.enable()
     board = Board(ALL_TOPICS)
     daemon = Daemon(board, modules=[], supervision=config.supervision)
     daemon.install_signal_handlers()
-    await daemon.run()
+    watchdog = config.watchdog
+    async with _recorder(board, record, config):
+        await run_as_service(
+            daemon,
+            Notifier.from_env(),
+            control_loop_check(board, watchdog.topics, watchdog.max_age_s),
+            max_loop_lag_s=watchdog.max_loop_lag_s,
+        )
+
+
+async def _replay(config: RobotConfig, args: argparse.Namespace) -> None:
+    """Replay onto a board whose clock follows the recording's stamps at ``--speed``."""
+    clock = ScaledClock(args.speed, start=recording_info(args.file).start_s)
+    board = Board(ALL_TOPICS, clock=clock)
+    daemon = Daemon(board, modules=[], supervision=config.supervision)
+    daemon.install_signal_handlers()
+    player = Player(board, args.file, args.topic, on_start=clock.restart)
+    async with _recorder(board, args.record, config):
+        playing = asyncio.create_task(player.run())
+        playing.add_done_callback(lambda _: daemon.request_stop("replay finished"))
+        await daemon.run()
+        playing.cancel()  # a no-op unless the replay was interrupted
+        with contextlib.suppress(asyncio.CancelledError):
+            await playing
+    log.info("replayed %d messages from %s", player.stats.total, args.file)
+
+
+def _tool(args: argparse.Namespace) -> int:
+    """The commands that need no robot configuration."""
+    if args.command == "record":
+        try:
+            print(recording_info(args.info).format())
+        except (OSError, RecordingError) as exc:
+            print(f"coffeebot: {exc}", file=sys.stderr)
+            return 1
+        return 0
+    # The console script next to this interpreter: the venv's, on the robot /opt/coffeebot/.venv.
+    executable = Path(sys.executable).absolute().parent / "coffeebot"
+    for line in install_service(REPO_ROOT, args.root, executable, DEFAULT_BOARD):
+        print(line)
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    if args.command in ("record", "install-service"):
+        return _tool(args)
     try:
         config = load_robot_config(args.board)
     except ConfigError as exc:
@@ -55,7 +125,14 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     setup_logging(args.log_level or config.logging.level)
     log.info("starting %s", args.command, extra={"board": str(args.board)})
-    asyncio.run(_run_daemon(config))
+    if args.command == "replay":
+        try:
+            asyncio.run(_replay(config, args))
+        except (OSError, RecordingError) as exc:
+            print(f"coffeebot: {exc}", file=sys.stderr)
+            return 1
+    else:
+        asyncio.run(_run_daemon(config, args.record))
     return 0
 
 

@@ -48,5 +48,10 @@ class ScaledClock:
     def now(self) -> float:
         return self.start + (time.monotonic() - self._origin) * self.speed
 
+    def restart(self, start: float) -> None:
+        """Read ``start`` from this moment on; replay uses it to line up with a recording."""
+        self.start = start
+        self._origin = time.monotonic()
+
     async def sleep(self, seconds: float) -> None:
         await asyncio.sleep(max(0.0, seconds) / self.speed)

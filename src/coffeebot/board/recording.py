@@ -16,7 +16,7 @@ import logging
 import queue
 import threading
 import time
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, BinaryIO
@@ -272,16 +272,24 @@ class PlayStats:
 class Player:
     """Republishes a recording onto a board, each message when the board clock reaches its stamp.
 
-    Give the board a clock that starts at the recording's first stamp (``ScaledClock(speed,
-    start=...)``) and the replay keeps the recorded timing at ``speed`` times real time, with
-    the republished stamps matching the recorded ones. The file is read in a thread, in
+    Give the board a ``ScaledClock(speed)`` and ``on_start=clock.restart`` and the replay keeps
+    the recorded timing at ``speed`` times real time, with the republished stamps matching the
+    recorded ones. The file is read in a thread, in
     batches, so the event loop never waits for the disk.
     """
 
-    def __init__(self, board: Board, path: str | Path, only: Iterable[str] | None = None) -> None:
+    def __init__(
+        self,
+        board: Board,
+        path: str | Path,
+        only: Iterable[str] | None = None,
+        on_start: Callable[[float], None] | None = None,
+    ) -> None:
         self.board = board
         self.path = Path(path)
         self.only = None if only is None else [board.topic(name).name for name in only]
+        self.on_start = on_start
+        """Called with the first stamp once the file is open, e.g. ``ScaledClock.restart``."""
         self.stats = PlayStats()
 
     async def run(self) -> PlayStats:
@@ -289,13 +297,17 @@ class Player:
         clock = self.board.clock
         published = self.stats.published
         try:
-            while batch := await asyncio.to_thread(list, itertools.islice(messages, _READ_BATCH)):
+            batch = await asyncio.to_thread(list, itertools.islice(messages, _READ_BATCH))
+            if batch and self.on_start is not None:
+                self.on_start(batch[0].stamp)
+            while batch:
                 for recorded in batch:
                     # Sleep even when behind schedule (zero seconds then), so subscribers get
                     # to run between two messages as they would have live.
                     await clock.sleep(max(0.0, recorded.stamp - clock.now()))
                     self.board.publish(recorded.topic, recorded.msg)
                     published[recorded.topic] = published.get(recorded.topic, 0) + 1
+                batch = await asyncio.to_thread(list, itertools.islice(messages, _READ_BATCH))
         finally:
             messages.close()
         return self.stats
@@ -321,13 +333,15 @@ class RecordingInfo(BaseModel):
 
     def format(self) -> str:
         """The table ``coffeebot record --info`` prints."""
-        lines = [
-            f"file      {self.path}",
-            f"messages  {self.messages}",
-            f"duration  {self.duration_s:.3f} s  (board clock {self.start_s:.3f} .. "
+        fields = {
+            "file": self.path,
+            "messages": str(self.messages),
+            "duration": f"{self.duration_s:.3f} s  (board clock {self.start_s:.3f} .. "
             f"{self.end_s:.3f} s)",
-        ]
-        lines += [f"{key:<9} {value}" for key, value in sorted(self.metadata.items())]
+            **dict(sorted(self.metadata.items())),
+        }
+        label = max(len(key) for key in fields)
+        lines = [f"{key:<{label}}  {value}" for key, value in fields.items()]
         width = max([len(t.name) for t in self.topics] + [5])
         lines.append(f"{'topic':<{width}}  {'messages':>8}  {'rate_hz':>8}  schema")
         for t in self.topics:
