@@ -13,9 +13,9 @@ import asyncio
 import itertools
 import json
 import logging
-import queue
 import threading
 import time
+from collections import deque
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -39,6 +39,8 @@ CHUNK_SIZE = 256 * 1024
 """Smaller than the library's 1 MiB so a power cut loses seconds of traffic, not a minute."""
 
 _READ_BATCH = 256
+WRITE_PERIOD_S = 0.05
+"""The writer thread wakes this often rather than on every message (see :class:`Recorder`)."""
 
 
 class RecordingError(ValueError):
@@ -57,9 +59,11 @@ class Recorder:
     """Writes every message on the board's topics to an MCAP file, off the event loop.
 
     Each topic gets its own board subscription and a small task that moves whatever arrived
-    into a bounded queue; a writer thread serialises, compresses and writes. On the event loop
-    a message costs a deque pop and a queue put. If the disk falls behind, the queue fills and
-    messages are dropped and counted: the recorder never makes the control loop wait.
+    onto a bounded deque; a writer thread wakes every ``WRITE_PERIOD_S`` and serialises,
+    compresses and writes what is there. On the event loop a message costs a deque pop and a
+    deque append: no lock, no thread wake-up, and the thread yields the GIL between messages.
+    If the disk falls behind, the deque fills and messages are dropped and counted: the
+    recorder never makes the control loop wait.
     """
 
     def __init__(
@@ -76,12 +80,14 @@ class Recorder:
         self.metadata = dict(metadata or {})
         self.written = 0
         self.dropped = 0
-        """Messages refused because the writer thread's queue was full."""
+        """Messages refused because the writer thread's backlog was full."""
         self.overflowed = 0
         """Messages lost because a reliable subscription of the recorder overflowed."""
         self.error: BaseException | None = None
         self._discarded = 0
-        self._queue: queue.Queue[list[Envelope[Any]] | None] = queue.Queue(queue_size)
+        self._backlog: deque[Envelope[Any]] = deque()
+        self._backlog_size = queue_size
+        self._closing = threading.Event()
         self._subscriptions: list[Subscription[Any]] = []
         self._pumps: list[asyncio.Task[None]] = []
         self._thread: threading.Thread | None = None
@@ -154,19 +160,26 @@ class Recorder:
                 subscription = self.board.subscribe(subscription.topic, name="recorder")
                 self._subscriptions[index] = subscription
                 continue
-            try:
-                self._queue.put_nowait(batch)
-            except queue.Full:
+            if len(self._backlog) + len(batch) > self._backlog_size:
                 self.dropped += len(batch)
+            else:
+                self._backlog.extend(batch)
 
     def _write(self, stream: BinaryIO, writer: Writer, channels: dict[str, int]) -> None:
         """The writer thread: everything slow (JSON, zstd, disk) happens here."""
+        backlog = self._backlog
         try:
-            while (batch := self._queue.get()) is not None:
-                if self.error is None:
-                    self._write_batch(writer, channels, batch)
-                else:
-                    self._discarded += len(batch)
+            while True:
+                closing = self._closing.wait(WRITE_PERIOD_S)
+                while backlog:
+                    envelope = backlog.popleft()
+                    if self.error is None:
+                        self._write_one(writer, channels[envelope.topic], envelope)
+                    else:
+                        self._discarded += 1
+                    time.sleep(0)  # hand the GIL to the event loop if it is waiting
+                if closing:
+                    break
             if self.error is None:
                 writer.finish()
         except Exception as exc:
@@ -174,24 +187,21 @@ class Recorder:
         finally:
             stream.close()
 
-    def _write_batch(
-        self, writer: Writer, channels: dict[str, int], batch: list[Envelope[Any]]
-    ) -> None:
-        for done, envelope in enumerate(batch):
-            stamp = _ns(envelope.stamp)
-            try:
-                writer.add_message(
-                    channels[envelope.topic],
-                    log_time=stamp,
-                    data=envelope.msg.model_dump_json().encode(),
-                    publish_time=stamp,
-                    sequence=envelope.seq & 0xFFFFFFFF,
-                )
-            except Exception as exc:
-                self._discarded += len(batch) - done
-                self._fail(exc)
-                return
-            self.written += 1
+    def _write_one(self, writer: Writer, channel: int, envelope: Envelope[Any]) -> None:
+        stamp = _ns(envelope.stamp)
+        try:
+            writer.add_message(
+                channel,
+                log_time=stamp,
+                data=envelope.msg.model_dump_json().encode(),
+                publish_time=stamp,
+                sequence=envelope.seq & 0xFFFFFFFF,
+            )
+        except Exception as exc:
+            self._discarded += 1
+            self._fail(exc)
+            return
+        self.written += 1
 
     def _fail(self, exc: Exception) -> None:
         """A full disk or a lost USB stick ends the recording, never the robot."""
@@ -200,7 +210,7 @@ class Recorder:
 
     def _finish(self) -> None:
         if self._thread is not None:
-            self._queue.put(None)
+            self._closing.set()
             self._thread.join()
             self._thread = None
 
