@@ -25,11 +25,16 @@ from coffeebot.messages import (
     ALL_TOPICS,
     COLLISION,
     DELIVERY_STATUS,
+    HEALTH,
     ODOMETRY,
     RANGE_SCAN,
+    DeliveryUpdate,
+    Health,
+    HealthStatus,
+    OrderStatus,
     RangeScan,
 )
-from manual_clock import ManualClock
+from manual_clock import ManualClock, settle
 from traffic import Published, make_recording
 
 
@@ -157,3 +162,32 @@ def test_a_cut_short_recording_is_reported(recorded: tuple[Path, Published, Reco
     path.write_bytes(data[: len(data) // 2])
     with pytest.raises(RecordingError, match=re.escape(str(path))):
         recording_info(path)
+
+
+async def test_a_failing_disk_ends_the_recording_not_the_caller(caplog: pytest.LogCaptureFixture):
+    board = Board(ALL_TOPICS)
+    recorder = Recorder(board, "/dev/full")
+    async with recorder:
+        for _ in range(5):
+            board.publish(HEALTH, Health(module="tof", status=HealthStatus.RUNNING))
+            await asyncio.sleep(0)
+    assert isinstance(recorder.error, OSError)
+    (line,) = [r for r in caplog.records if getattr(r, "event", None) == "fault"]
+    assert "No space left on device" in line.getMessage()
+
+
+async def test_an_overflowing_reliable_subscription_is_counted_and_recording_goes_on(
+    tmp_path: Path,
+):
+    clock = ManualClock()
+    board = Board(ALL_TOPICS, clock=clock)
+    path = tmp_path / "burst.mcap"
+    update = DeliveryUpdate(order_id="A1", status=OrderStatus.QUEUED)
+    async with Recorder(board, path, topics=[DELIVERY_STATUS]) as recorder:
+        for _ in range(DELIVERY_STATUS.queue_size + 44):  # without yielding to the recorder
+            board.publish(DELIVERY_STATUS, update)
+        await settle()
+        board.publish(DELIVERY_STATUS, update)
+        await settle()
+    assert recorder.overflowed == DELIVERY_STATUS.queue_size + 44
+    assert [t.messages for t in recording_info(path).topics] == [1]

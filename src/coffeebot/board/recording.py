@@ -72,7 +72,7 @@ class Recorder:
         path: str | Path,
         topics: Iterable[Topic[Any]] | None = None,
         metadata: Mapping[str, str] | None = None,
-        queue_size: int = 4096,
+        backlog_size: int = 4096,
     ) -> None:
         self.board = board
         self.path = Path(path)
@@ -86,7 +86,7 @@ class Recorder:
         self.error: BaseException | None = None
         self._discarded = 0
         self._backlog: deque[Envelope[Any]] = deque()
-        self._backlog_size = queue_size
+        self._backlog_size = backlog_size
         self._closing = threading.Event()
         self._subscriptions: list[Subscription[Any]] = []
         self._pumps: list[asyncio.Task[None]] = []
@@ -185,7 +185,11 @@ class Recorder:
         except Exception as exc:
             self._fail(exc)
         finally:
-            stream.close()
+            try:
+                stream.close()
+            except OSError as exc:  # the buffered tail could not be written either
+                if self.error is None:
+                    self._fail(exc)
 
     def _write_one(self, writer: Writer, channel: int, envelope: Envelope[Any]) -> None:
         stamp = _ns(envelope.stamp)
