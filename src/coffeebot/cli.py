@@ -33,6 +33,13 @@ def _add_common(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--log-level", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
 
 
+def _positive(text: str) -> float:
+    value = float(text)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be positive, got {text}")
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="coffeebot", description="Software of an indoor coffee-delivery robot."
@@ -45,7 +52,7 @@ def build_parser() -> argparse.ArgumentParser:
     replay = sub.add_parser("replay", help="republish a recording onto a board")
     _add_common(replay)
     replay.add_argument("file", type=Path, help="an MCAP recording")
-    replay.add_argument("--speed", type=float, default=1.0, help="times real time (default 1)")
+    replay.add_argument("--speed", type=_positive, default=1.0, help="times real time (default 1)")
     replay.add_argument("--topic", action="append", help="replay only this topic (repeatable)")
     for p in (run, sim, replay):
         p.add_argument("--record", type=Path, metavar="FILE.mcap", help="record the board")
@@ -100,17 +107,17 @@ async def _replay(config: RobotConfig, args: argparse.Namespace) -> None:
 
 def _tool(args: argparse.Namespace) -> int:
     """The commands that need no robot configuration."""
-    if args.command == "record":
-        try:
+    try:
+        if args.command == "record":
             print(recording_info(args.info).format())
-        except (OSError, RecordingError) as exc:
-            print(f"coffeebot: {exc}", file=sys.stderr)
-            return 1
-        return 0
-    # The console script next to this interpreter: the venv's, on the robot /opt/coffeebot/.venv.
-    executable = Path(sys.executable).absolute().parent / "coffeebot"
-    for line in install_service(REPO_ROOT, args.root, executable, DEFAULT_BOARD):
-        print(line)
+        else:
+            # The console script next to this interpreter: on the robot, /opt/coffeebot/.venv's.
+            executable = Path(sys.executable).absolute().parent / "coffeebot"
+            for line in install_service(REPO_ROOT, args.root, executable, DEFAULT_BOARD):
+                print(line)
+    except (OSError, RecordingError) as exc:
+        print(f"coffeebot: {exc}", file=sys.stderr)
+        return 1
     return 0
 
 
