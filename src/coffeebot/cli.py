@@ -105,7 +105,7 @@ async def _replay(config: RobotConfig, args: argparse.Namespace) -> None:
     log.info("replayed %d messages from %s", player.stats.total, args.file)
 
 
-def _tool(args: argparse.Namespace) -> int:
+def _without_config(args: argparse.Namespace) -> int:
     """The commands that need no robot configuration."""
     try:
         if args.command == "record":
@@ -124,7 +124,7 @@ def _tool(args: argparse.Namespace) -> int:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if args.command in ("record", "install-service"):
-        return _tool(args)
+        return _without_config(args)
     try:
         config = load_robot_config(args.board)
     except ConfigError as exc:

@@ -61,8 +61,8 @@ class Notifier:
         pid = env.get("WATCHDOG_PID")
         # WATCHDOG_PID names the process the watchdog is meant for; a child that inherited the
         # environment must not ping on its parent's behalf.
-        for_us = usec and (not pid or int(pid) == os.getpid())
-        return cls(env.get("NOTIFY_SOCKET") or None, int(usec) if for_us and usec else None)
+        for_us = not pid or int(pid) == os.getpid()
+        return cls(env.get("NOTIFY_SOCKET") or None, int(usec) if usec and for_us else None)
 
     @property
     def enabled(self) -> bool:
