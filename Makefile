@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: run sim test lint bench system-deps clean
+.PHONY: run sim test lint bench system-deps clean install
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -15,6 +15,11 @@ $(STAMP): pyproject.toml
 # The demo: the whole daemon on the simulated robot, web UI on http://127.0.0.1:8080
 run: $(STAMP)
 	$(BIN)/coffeebot sim
+
+# On the robot, as root, in a checkout at /opt/coffeebot: the systemd unit, its user and a
+# default /etc/coffeebot (docs/robot.md).
+install: $(STAMP)
+	$(BIN)/coffeebot install-service
 
 system-deps:
 	./.ci/system-deps

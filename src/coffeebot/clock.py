@@ -33,18 +33,25 @@ class MonotonicClock:
 class ScaledClock:
     """Simulated time running ``speed`` times faster than the machine's monotonic clock.
 
-    Simulated seconds start at zero when the clock is made. Sleeping ``dt`` simulated seconds
-    sleeps ``dt / speed`` real seconds, so every module keeps its rates in simulated time.
+    Simulated seconds start at ``start`` (zero, or a recording's first stamp when replaying)
+    when the clock is made. Sleeping ``dt`` simulated seconds sleeps ``dt / speed`` real
+    seconds, so every module keeps its rates in simulated time.
     """
 
-    def __init__(self, speed: float = 1.0) -> None:
+    def __init__(self, speed: float = 1.0, start: float = 0.0) -> None:
         if speed <= 0:
             raise ValueError(f"clock speed must be positive, got {speed}")
         self.speed = speed
+        self.start = start
         self._origin = time.monotonic()
 
     def now(self) -> float:
-        return (time.monotonic() - self._origin) * self.speed
+        return self.start + (time.monotonic() - self._origin) * self.speed
+
+    def restart(self, start: float) -> None:
+        """Read ``start`` from this moment on; replay uses it to line up with a recording."""
+        self.start = start
+        self._origin = time.monotonic()
 
     async def sleep(self, seconds: float) -> None:
         await asyncio.sleep(max(0.0, seconds) / self.speed)

@@ -214,6 +214,16 @@ class LoggingConfig(Section):
     level: Literal["DEBUG", "INFO", "WARNING", "ERROR"] = "INFO"
 
 
+class WatchdogConfig(Section):
+    """When systemd's watchdog gets its pings: the control loop's topics keep arriving."""
+
+    topics: list[str] = Field(
+        ["safety/collision"], min_length=1, description="each must stay fresh"
+    )
+    max_age_s: float = Field(1.0, gt=0, description="older than this: control loop stalled")
+    max_loop_lag_s: float = Field(1.0, gt=0, description="event loop this late: stalled")
+
+
 class SupervisionConfig(Section):
     restart_backoff_s: float = Field(0.5, gt=0)
     restart_backoff_max_s: float = Field(10.0, gt=0)
@@ -237,6 +247,7 @@ class RobotConfig(Section):
     store: StoreConfig = StoreConfig()
     logging: LoggingConfig = LoggingConfig()
     supervision: SupervisionConfig = SupervisionConfig()
+    watchdog: WatchdogConfig = WatchdogConfig()
 
     def sensor(self, sensor_id: int) -> TofSensorConfig:
         return next(s for s in self.tof.sensors if s.id == sensor_id)

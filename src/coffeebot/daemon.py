@@ -20,6 +20,7 @@ from typing import Any
 from coffeebot.board import Board
 from coffeebot.clock import Clock
 from coffeebot.config import SupervisionConfig
+from coffeebot.logs import Event
 from coffeebot.messages import HEALTH, Health, HealthStatus
 from coffeebot.modules.base import Module, ModuleBoard, ModuleContext
 
@@ -130,6 +131,7 @@ class Daemon:
                         cfg.failure_window_s,
                         state.last_error,
                         exc_info=True,
+                        extra={"event": Event.FAULT.value, "cause": state.last_error},
                     )
                     self._report(state, state.last_error)
                     return
@@ -142,6 +144,7 @@ class Daemon:
                     backoff,
                     state.last_error,
                     exc_info=True,
+                    extra={"event": Event.FAULT.value, "cause": state.last_error},
                 )
                 self._report(state, state.last_error)
                 await self.clock.sleep(backoff)
@@ -159,11 +162,15 @@ class Daemon:
             )
         await asyncio.sleep(0)
 
+    async def wait_stop_requested(self) -> None:
+        """Return once :meth:`request_stop` has been called (a signal, an operator, a test)."""
+        await self._stop.wait()
+
     async def run(self) -> None:
         """Start every module, wait for a stop request, then shut down in order."""
         await self.start()
         try:
-            await self._stop.wait()
+            await self.wait_stop_requested()
         finally:
             await self.shutdown()
 

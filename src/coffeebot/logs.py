@@ -1,12 +1,88 @@
-"""Structured logging: one line per event, ``key=value`` pairs, to stderr (journald keeps it)."""
+"""Structured logging: one line per event, ``key=value`` pairs, to stderr (journald keeps it).
+
+The convention every module follows for the events an operator reads back after an incident
+(safety stops, faults, reconnects, order transitions) is :func:`log_event` for one-off events
+and :class:`Transitions` for conditions a loop sees every cycle: each is logged once, when it
+changes, with its cause. docs/operations.md ("Logging") shows examples.
+"""
 
 from __future__ import annotations
 
 import logging
+import os
 import sys
 import time
+from collections.abc import Hashable, Mapping
+from enum import StrEnum
+from typing import TextIO
 
 _RESERVED = set(vars(logging.LogRecord("", 0, "", 0, "", None, None))) | {"message", "asctime"}
+
+# sd-daemon(3) priority prefixes: journald strips them and files the line at that priority,
+# so `journalctl -p warning` works on our lines.
+_SYSLOG_PRIORITY = {
+    logging.CRITICAL: 2,
+    logging.ERROR: 3,
+    logging.WARNING: 4,
+    logging.INFO: 6,
+    logging.DEBUG: 7,
+}
+
+
+class Event(StrEnum):
+    """The kinds of event every module logs once, with its cause, as ``event=<kind>``."""
+
+    SAFETY_STOP = "safety_stop"
+    SAFETY_CLEAR = "safety_clear"
+    FAULT = "fault"
+    RECOVERED = "recovered"
+    DISCONNECT = "disconnect"
+    RECONNECT = "reconnect"
+    ORDER = "order"
+
+    @property
+    def level(self) -> int:
+        if self is Event.FAULT:
+            return logging.ERROR
+        if self in (Event.SAFETY_STOP, Event.DISCONNECT):
+            return logging.WARNING
+        return logging.INFO
+
+
+def log_event(logger: logging.Logger, event: Event, cause: str, **fields: object) -> None:
+    """Log one event as ``msg="<event>: <cause>" event=<event> cause=<cause> <fields>``."""
+    logger.log(
+        event.level,
+        "%s: %s",
+        event.value,
+        cause,
+        extra={"event": event.value, "cause": cause, **fields},
+    )
+
+
+class Transitions:
+    """Remembers the last state of each subject, so that a state is logged when it changes.
+
+    A collision module that sees an obstacle in 50 scans a second calls :meth:`update` on every
+    scan; only the scan that turns "go" into "stop" produces a log line.
+    """
+
+    def __init__(self, logger: logging.Logger) -> None:
+        self._logger = logger
+        self._states: dict[str, Hashable] = {}
+
+    def update(
+        self, subject: str, state: Hashable, event: Event, cause: str, **fields: object
+    ) -> bool:
+        """Log ``event`` if ``subject`` was not already in ``state``; True when it logged."""
+        previous = self._states.get(subject)
+        if subject in self._states and previous == state:
+            return False
+        self._states[subject] = state
+        log_event(
+            self._logger, event, cause, subject=subject, state=state, previous=previous, **fields
+        )
+        return True
 
 
 def _quote(value: object) -> str:
@@ -17,7 +93,14 @@ def _quote(value: object) -> str:
 
 
 class LogfmtFormatter(logging.Formatter):
-    """``ts=... level=... logger=... msg="..." key=value``; tracebacks stay on one line."""
+    """``ts=... level=... logger=... msg="..." key=value``; tracebacks stay on one line.
+
+    With ``syslog_prefix`` each line starts with its ``<priority>`` for journald.
+    """
+
+    def __init__(self, syslog_prefix: bool = False) -> None:
+        super().__init__()
+        self.syslog_prefix = syslog_prefix
 
     def format(self, record: logging.LogRecord) -> str:
         created = time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime(record.created))
@@ -30,12 +113,26 @@ class LogfmtFormatter(logging.Formatter):
         parts += [f"{k}={_quote(v)}" for k, v in vars(record).items() if k not in _RESERVED]
         if record.exc_info:
             parts.append(f"exc={_quote(self.formatException(record.exc_info))}")
-        return " ".join(parts)
+        line = " ".join(parts)
+        if self.syslog_prefix:
+            line = f"<{_SYSLOG_PRIORITY.get(record.levelno, 6)}>{line}"
+        return line
+
+
+def attached_to_journal(stream: TextIO, environ: Mapping[str, str] | None = None) -> bool:
+    """Whether ``stream`` is the journald stream systemd gave us (``JOURNAL_STREAM=dev:ino``)."""
+    value = (os.environ if environ is None else environ).get("JOURNAL_STREAM", "")
+    try:
+        device, inode = (int(part) for part in value.split(":"))
+        stat = os.fstat(stream.fileno())
+    except (ValueError, OSError):
+        return False
+    return (stat.st_dev, stat.st_ino) == (device, inode)
 
 
 def setup_logging(level: str = "INFO") -> None:
     handler = logging.StreamHandler(sys.stderr)
-    handler.setFormatter(LogfmtFormatter())
+    handler.setFormatter(LogfmtFormatter(syslog_prefix=attached_to_journal(sys.stderr)))
     root = logging.getLogger()
     root.handlers[:] = [handler]
     root.setLevel(level)
