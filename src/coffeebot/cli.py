@@ -17,14 +17,14 @@ from coffeebot.clock import ScaledClock
 from coffeebot.config import ConfigError, RobotConfig, load_robot_config
 from coffeebot.daemon import Daemon
 from coffeebot.floorplan_svg import add_render_arguments, render_command
-from coffeebot.modules.orders import OrdersModule
-from coffeebot.modules.web import WebModule
-from coffeebot.store import OrderStore
-from coffeebot.web import WebDeps
 from coffeebot.install import install_service
 from coffeebot.logs import setup_logging
 from coffeebot.messages import ALL_TOPICS
+from coffeebot.modules.orders import OrdersModule
+from coffeebot.modules.web import WebModule
+from coffeebot.store import OrderStore
 from coffeebot.systemd import Notifier, control_loop_check, run_as_service
+from coffeebot.web import WebDeps
 
 log = logging.getLogger("coffeebot")
 
