@@ -4,7 +4,8 @@ Supervision follows the usual shape (Erlang's one-for-one, systemd's Restart=): 
 whose ``run`` raises is logged with its traceback, reported on the health topic and restarted
 after an exponential backoff; a module that fails more than ``max_restarts`` times within
 ``failure_window_s`` is marked failed and left down. Safety never depends on a module being
-up: motion treats a failed or silent collision module as "stop".
+up: motion treats a failed or silent collision module as "stop", and a *critical* module that
+is marked failed also engages the emergency stop, which only an operator releases.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from coffeebot.board import Board
 from coffeebot.clock import Clock
 from coffeebot.config import SupervisionConfig
 from coffeebot.logs import Event
-from coffeebot.messages import HEALTH, Health, HealthStatus
+from coffeebot.messages import ESTOP, HEALTH, EStop, Health, HealthStatus
 from coffeebot.modules.base import Module, ModuleBoard, ModuleContext
 
 log = logging.getLogger(__name__)
@@ -134,6 +135,15 @@ class Daemon:
                         extra={"event": Event.FAULT.value, "cause": state.last_error},
                     )
                     self._report(state, state.last_error)
+                    if module.critical:
+                        self.board.publish(
+                            ESTOP,
+                            EStop(
+                                engaged=True,
+                                source="supervisor",
+                                reason=f"critical module {module.name} failed: {state.last_error}",
+                            ),
+                        )
                     return
                 state.status = HealthStatus.RESTARTING
                 state.restarts += 1

@@ -94,6 +94,24 @@ async def test_module_that_keeps_failing_is_marked_failed(clock) -> None:
     await daemon.shutdown()
 
 
+async def test_failed_critical_module_engages_the_emergency_stop(clock) -> None:
+    class CriticalCrasher(Crasher):
+        name = "motor"
+        critical = True
+
+    board = Board(ALL_TOPICS, clock=clock)
+    daemon = Daemon(board, [CriticalCrasher(crashes=100), Crasher(crashes=100)], SUPERVISION)
+    await daemon.start()
+    estops = board.subscribe(ESTOP, name="test")
+    for _ in range(10):
+        await clock.advance(5)
+    assert all(s.status is HealthStatus.FAILED for s in daemon.states.values())
+    engaged = [env.msg for env in iter(estops.get_nowait, None)]
+    assert len(engaged) == 1  # only the critical one
+    assert engaged[0].engaged and "critical module motor failed" in engaged[0].reason
+    await daemon.shutdown()
+
+
 async def test_shutdown_runs_safety_hooks_first_then_cancels_in_reverse(clock) -> None:
     journal: list[str] = []
     board = Board(ALL_TOPICS, clock=clock)
