@@ -7,7 +7,13 @@
   const el = (name) => document.getElementById(name);
   const finalStates = ["delivered", "cancelled", "failed"];
 
+  let shownUpdatedAt = -Infinity;
+
+  // The stream and a button's own response can arrive in either order: never step back to
+  // an older state (the response to "I have my coffee" must not undo "delivered").
   function show(order) {
+    if (order.updated_at < shownUpdatedAt) return;
+    shownUpdatedAt = order.updated_at;
     box.dataset.status = order.status;
     el("status-text").textContent = statusText[order.status] || order.status;
     el("queue").textContent = order.status === "queued" ? `${order.ahead} order(s) ahead of yours` : "";
