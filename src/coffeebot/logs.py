@@ -130,8 +130,21 @@ def attached_to_journal(stream: TextIO, environ: Mapping[str, str] | None = None
     return (stat.st_dev, stat.st_ino) == (device, inode)
 
 
+class StderrHandler(logging.StreamHandler):  # type: ignore[type-arg]
+    """Writes to whatever ``sys.stderr`` is at the time, as ``logging.lastResort`` does, so a
+    replaced stderr (a test's capture, a redirected daemon) never receives writes once closed."""
+
+    @property  # type: ignore[override]
+    def stream(self) -> TextIO:
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, _value: TextIO) -> None:
+        """The base class assigns the stream at init; it is always read from ``sys``."""
+
+
 def setup_logging(level: str = "INFO") -> None:
-    handler = logging.StreamHandler(sys.stderr)
+    handler = StderrHandler()
     handler.setFormatter(LogfmtFormatter(syslog_prefix=attached_to_journal(sys.stderr)))
     root = logging.getLogger()
     root.handlers[:] = [handler]
