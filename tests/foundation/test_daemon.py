@@ -70,7 +70,7 @@ async def test_crashing_module_is_restarted_with_backoff_and_reported(clock, cap
     assert module.runs == 1  # still backing off
     await clock.advance(0.2)
     assert module.runs == 2
-    await clock.advance(1.9)  # second backoff doubled to 2 s
+    await clock.advance(1.8)  # second backoff doubled to 2 s (from t+1.0 to t+3.0)
     assert module.runs == 2
     await clock.advance(0.2)
     assert module.runs == 3
