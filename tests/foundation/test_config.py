@@ -63,3 +63,13 @@ def test_broken_toml_and_missing_file(tmp_path: Path) -> None:
         load_robot_config(path)
     with pytest.raises(ConfigError, match="file not found"):
         load_robot_config(tmp_path / "nope.toml")
+
+
+def test_cli_refuses_a_broken_board_file_with_the_field(tmp_path: Path, capsys) -> None:
+    from coffeebot.cli import main
+
+    path = tmp_path / "robot.toml"
+    path.write_text(BOARD.read_text().replace("mux_address = 0x70", "mux_address = 0x10"))
+    assert main(["run", "--board", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "configuration error" in err and "i2c.mux_address" in err and str(path) in err
