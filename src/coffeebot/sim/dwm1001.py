@@ -60,6 +60,7 @@ class SimDwm1001(PtyDevice):
         boot_s: float = 0.05,
         seed: int = 0,
         clock: Callable[[], float] = time.monotonic,
+        tick_s: float = 0.005,
     ) -> None:
         if (truth_fn is None) == (fix_fn is None):
             raise ValueError("give exactly one of truth_fn and fix_fn")
@@ -75,7 +76,7 @@ class SimDwm1001(PtyDevice):
         self.resets = 0
         self.commands: list[str] = []  # every shell command received, for tests
         self._rng = random.Random(seed)
-        super().__init__("dwm1001", clock=clock)
+        super().__init__("dwm1001", clock=clock, tick_s=tick_s)
 
     def on_plugged(self) -> None:
         with self._lock:
