@@ -93,7 +93,7 @@ class Simulation:
         self.lock = threading.RLock()
         self.faults = [fault.model_copy() for fault in faults]  # each run starts afresh
         self.truth = TruthLog()
-        self._origin = clock.now()
+        self._origin: float | None = None  # the world's t = 0 on the clock: its first step
         by_id = sorted(config.tof.sensors, key=lambda s: s.id)
         self._index = {s.channel: i for i, s in enumerate(by_id)}
         self.sensor_channel = {s.id: s.channel for s in by_id}
@@ -116,7 +116,7 @@ class Simulation:
 
     @property
     def t_s(self) -> float:
-        """Simulated seconds since the simulation was made (the world's own time)."""
+        """Simulated seconds since the world module started (the world's own time)."""
         return self.world.t_s
 
     def start(self) -> None:
@@ -129,8 +129,11 @@ class Simulation:
 
     def advance(self) -> None:
         """Step the world to the clock's present, then apply the faults that are due."""
+        now = self.clock.now()
+        if self._origin is None:
+            self._origin = now  # time spent in the self-check is not part of the run
         with self.lock:
-            self.world.step(self.clock.now() - self._origin - self.world.t_s)
+            self.world.step(now - self._origin - self.world.t_s)
             gap = self.world.clearance_mm()
             self.truth.min_clearance_mm = min(self.truth.min_clearance_mm, gap)
         for fault in self.faults:
