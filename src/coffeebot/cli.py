@@ -60,8 +60,8 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--headless", action="store_true", help="no web UI")
     sim.add_argument("--duration", type=_positive, metavar="S", help="stop after S sim seconds")
     sim.add_argument("--speed", type=_positive, default=1.0, help="times real time (default 1)")
-    sim.add_argument("--host", help="web UI address (default: the board file's)")
-    sim.add_argument("--port", type=int, help="web UI port (default: the board file's)")
+    sim.add_argument("--host", default="127.0.0.1", help="web UI address (default 127.0.0.1)")
+    sim.add_argument("--port", type=int, default=8080, help="web UI port (default 8080)")
     check = sub.add_parser("check-hardware", help="probe every device once and print a table")
     _add_common(check)
     check.add_argument("--sim", action="store_true", help="probe the simulated buses instead")
@@ -98,11 +98,7 @@ async def _sim(config: RobotConfig, plan: FloorPlan, args: argparse.Namespace) -
 
 def _sim_command(config: RobotConfig, args: argparse.Namespace) -> int:
     config = config.model_copy(
-        update={
-            "web": config.web.model_copy(
-                update={"host": args.host or config.web.host, "port": args.port or config.web.port}
-            )
-        }
+        update={"web": config.web.model_copy(update={"host": args.host, "port": args.port})}
     )
     if args.scenario is None:
         if args.headless and args.duration is None:
