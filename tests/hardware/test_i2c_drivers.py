@@ -146,6 +146,7 @@ def test_uncleared_interrupt_keeps_the_old_sample(hw: SimTofHardware, fake_time:
         (7, ReadingStatus.WRAP_AROUND),
         (3, ReadingStatus.HARDWARE_FAIL),
         (5, ReadingStatus.OUT_OF_BOUNDS),
+        (8, ReadingStatus.TOO_CLOSE),
         (13, ReadingStatus.OTHER),
         (0x49, ReadingStatus.VALID),
     ],
@@ -170,7 +171,7 @@ def test_out_of_range_and_too_close(hw: SimTofHardware, fake_time: FakeTime) -> 
     sensor.start_ranging()
     assert range_once(sensor)[0] is ReadingStatus.OUT_OF_BOUNDS
     distances[0] = 20.0
-    assert range_once(sensor) == (ReadingStatus.OUT_OF_BOUNDS, 20)
+    assert range_once(sensor) == (ReadingStatus.TOO_CLOSE, 20)
 
 
 def test_sensor_nack_and_bus_timeout_are_oserrors(hw: SimTofHardware, fake_time: FakeTime) -> None:

@@ -111,16 +111,17 @@ TIMING_BUDGETS: dict[DistanceMode, dict[int, tuple[int, int]]] = {
 }
 
 # RESULT__RANGE_STATUS & 0x1F -> typed status. Anything not listed is OTHER (ULD's 255).
-# Raw 8 (target closer than the minimum range) is OUT_OF_BOUNDS like raw 5 (beyond what it
-# can see): either way the distance is not a measurement. Raw 19 is "valid but without the
-# wrap-around check" (the first range after a start), which we do not trust either.
+# Raw 8 (target closer than the minimum range) is TOO_CLOSE, never lumped with raw 5
+# (OUT_OF_BOUNDS, beyond what it can see): the first means something touches the robot, the
+# second that nothing is there. Raw 19 is "valid but without the wrap-around check" (the
+# first range after a start), which we do not trust.
 RANGE_STATUS: dict[int, ReadingStatus] = {
     9: ReadingStatus.VALID,
     6: ReadingStatus.SIGMA_FAIL,
     4: ReadingStatus.SIGNAL_FAIL,
     23: ReadingStatus.SIGNAL_FAIL,
     5: ReadingStatus.OUT_OF_BOUNDS,
-    8: ReadingStatus.OUT_OF_BOUNDS,
+    8: ReadingStatus.TOO_CLOSE,
     3: ReadingStatus.HARDWARE_FAIL,
     7: ReadingStatus.WRAP_AROUND,
 }
