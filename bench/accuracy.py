@@ -130,7 +130,7 @@ def bench_angle(plan: FloorPlan, config: RobotConfig, spec: RobotSpec, cases: in
     ]
     for name, use_floor, s, d, heading, side in setups:
         x, y = floor.from_hallway(s, d)
-        world.move_to_floor(2, Pose(x, y, heading))
+        world.place_robot(Pose(x, y, heading), 2)
         true = TravelFrame.for_heading(floor, heading).angle_deg(heading)
         result = _measure_angle(world, use_floor, config, known_pose(world.pose, 2, 50, 3))
         situations.append(
@@ -159,7 +159,7 @@ def bench_angle(plan: FloorPlan, config: RobotConfig, spec: RobotSpec, cases: in
         direction = 0.0 if rng.random() < 0.5 else 180.0
         true = float(rng.uniform(-30, 30))
         x, y = f.from_hallway(s, d)
-        world.move_to_floor(level, Pose(x, y, direction + true))
+        world.place_robot(Pose(x, y, direction + true), level)
         bias = float(rng.normal(0, 2.0))
         prior = Pose(
             x + float(rng.normal(0, 50)), y + float(rng.normal(0, 50)), direction + true + bias
