@@ -187,6 +187,7 @@ def _round(value: float | None, digits: int = 2) -> float | None:
 def bench_door(plan: FloorPlan, config: RobotConfig, spec: RobotSpec, speeds: list[int]) -> dict:
     by_speed = []
     errors: list[float] = []
+    late: list[float] = []
     found_total = doors_total = false_alarms = 0
     distance_m = 0.0
     for speed in speeds:
@@ -206,12 +207,13 @@ def bench_door(plan: FloorPlan, config: RobotConfig, spec: RobotSpec, speeds: li
             for k, row in enumerate(rows[1:], start=1):
                 step = math.dist(row.pose[:2], rows[k - 1].pose[:2]) * SCAN_HZ
                 prior = known_pose(row.pose, level, 20, 1, speed=step)
-                events += detector.update(
+                found = detector.update(
                     to_scan(row.readings, row.t_s), k, prior, floor, step, SCAN_HZ
                 )
+                events += [(row.s_mm, event) for event in found]
             passed = [f for f in floor.features() if 900 < f.at_mm < end - 600]
             hit: set[str] = set()
-            for event in events:
+            for robot_s, event in events:
                 s, _ = floor.to_hallway(event.x_mm, event.y_mm)
                 near = [f for f in passed if f.side == event.side and abs(f.at_mm - s) < 600]
                 if not near:
@@ -221,6 +223,7 @@ def bench_door(plan: FloorPlan, config: RobotConfig, spec: RobotSpec, speeds: li
                 if isinstance(feature, Door) and feature.id not in hit:
                     hit.add(feature.id)
                     errors.append(abs(s - feature.at_mm))
+                    late.append(robot_s - feature.at_mm)
             doors += sum(isinstance(f, Door) for f in passed)
             found += len(hit)
         by_speed.append({"speed_mm_s": speed, "recall": round(found / doors, 4)})
@@ -231,6 +234,7 @@ def bench_door(plan: FloorPlan, config: RobotConfig, spec: RobotSpec, speeds: li
         "recall": round(found_total / doors_total, 4),
         "false_alarms_per_100m": round(100.0 * false_alarms / distance_m, 3),
         "position_err_mm_p95": round(float(np.percentile(errors, 95)), 1),
+        "reported_past_centre_mm_median": round(float(np.median(late)), 1),
         "by_speed": by_speed,
         "note": "every door and opening passed on floors 2 and 3, keeping right; true pose",
     }
@@ -485,6 +489,8 @@ def table(result: dict[str, Any]) -> str:
         f"| recall | {d['recall']} | >= 0.99 |",
         f"| false alarms per 100 m | {d['false_alarms_per_100m']} | <= 1 |",
         f"| position error p95 | {d['position_err_mm_p95']} mm | <= 50 mm |",
+        f"| robot centre past the door centre when reported (median) "
+        f"| {d['reported_past_centre_mm_median']} mm | |",
     ]
     lines += [f"| recall at {s['speed_mm_s']} mm/s | {s['recall']} | |" for s in d["by_speed"]]
     lines += [

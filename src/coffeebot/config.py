@@ -155,6 +155,12 @@ class DoorConfig(Section):
     match_gate_mm: float = Field(
         1200.0, gt=0, description="a detection further than this from a plan door is unmatched"
     )
+    max_feature_mm: float = Field(
+        2500.0,
+        gt=0,
+        description="travel after a rising edge without the wall coming back: report the door "
+        "from its near edge alone (wider than the 1700 mm openings)",
+    )
 
 
 class StateConfig(Section):
