@@ -111,6 +111,23 @@ class CollisionConfig(Section):
     unknown_speed_mm_s: float | None = Field(
         None, gt=0, description="speed assumed without fresh odometry; None: motor max speed"
     )
+    narrow_margin_mm: float = Field(
+        250.0,
+        ge=0,
+        description="extra front clearance for a narrow return: a pole can carry a seat or "
+        "table top above the cones (a swivel chair's seat reaches ~240 mm beyond its pole)",
+    )
+    narrow_max_sensors: int = Field(
+        2, ge=1, description="a return seen by at most this many adjacent front sensors is narrow"
+    )
+    narrow_depth_mm: float = Field(
+        300.0, gt=0, description="the other front sensors read at least this much further"
+    )
+    narrow_max_range_mm: float = Field(
+        1200.0,
+        gt=0,
+        description="narrow returns further than this are not judged (glances off side walls)",
+    )
 
 
 class AngleConfig(Section):

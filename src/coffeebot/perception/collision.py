@@ -9,6 +9,12 @@ that is unhealthy, reports a hardware/bus failure, or has had no usable reading 
 ``stale_cycles`` scans makes the verdict "stop" (driving blind is never "go"); a sensor that
 sees nothing within its range is clear.
 
+Beyond that, a return seen by only one or two adjacent front sensors while the others read
+much further is narrow: a pole, a chair leg, a person's legs. What stands on a pole often
+spreads out above the cones (a swivel chair's seat overhangs its pole by ~240 mm at
+430-500 mm, where the body is), so a narrow return gets ``narrow_margin_mm`` more clearance,
+in the stop distance and in the slowdown speed alike.
+
 Side readings measure the gap from the body directly (the sensors sit on the body's sides),
 and so do front readings, so the radii apply to the raw distances.
 """
@@ -21,6 +27,7 @@ from dataclasses import dataclass
 
 from coffeebot.config import CollisionConfig, TofSensorConfig
 from coffeebot.messages import CollisionStatus, RangeReading, RangeScan, ReadingStatus, SafetyState
+from coffeebot.perception.geometry import valid_distance
 
 NOTHING_IN_RANGE = frozenset({ReadingStatus.NO_TARGET, ReadingStatus.OUT_OF_BOUNDS})
 """Statuses meaning "no target within range": the face is clear, not blind."""
@@ -88,8 +95,29 @@ class CollisionMonitor:
             return stop_distance_mm(self.cfg, -speed_mm_s)
         return self.cfg.side_radius_mm
 
+    def narrow(self, readings: dict[int, RangeReading]) -> frozenset[int]:
+        """Front sensors whose return is narrow: it and the adjacent sensors reading within
+        ``narrow_depth_mm`` beyond it form a run of at most ``narrow_max_sensors``, so the
+        sensors on either side of the run read much further (or nothing)."""
+        cfg = self.cfg
+        row = sorted((s for s in self.sensors.values() if s.face == "front"), key=lambda s: s.y_mm)
+        distances = [valid_distance(readings.get(s.id)) for s in row]
+        found: set[int] = set()
+        for i, distance in enumerate(distances):
+            if distance is None or distance > cfg.narrow_max_range_mm:
+                continue
+            near = [d is not None and d < distance + cfg.narrow_depth_mm for d in distances]
+            lo, hi = i, i
+            while lo > 0 and near[lo - 1]:
+                lo -= 1
+            while hi < len(row) - 1 and near[hi + 1]:
+                hi += 1
+            if hi - lo + 1 <= cfg.narrow_max_sensors:
+                found.add(row[i].id)
+        return frozenset(found)
+
     def _assess(
-        self, sensor: TofSensorConfig, reading: RangeReading | None, speed: float
+        self, sensor: TofSensorConfig, reading: RangeReading | None, speed: float, narrow: bool
     ) -> _Finding:
         cfg = self.cfg
         if reading is not None and (not reading.healthy or reading.status in FAILED):
@@ -113,20 +141,23 @@ class CollisionMonitor:
         if distance is None or distance > self.max_range_mm:
             return _Finding(SafetyState.GO, sensor, None, "clear", self.max_speed_mm_s)
         # Leaving a zone needs extra clearance: the thresholds grow while we are inside it.
-        stop_at = self._radius(sensor.face, speed)
+        margin = cfg.narrow_margin_mm if narrow else 0.0
+        stop_at = self._radius(sensor.face, speed) + margin
         slow_at = stop_at + (cfg.slowdown_extra_mm if sensor.face in ("front", "rear") else 0.0)
         if self.state is SafetyState.STOP:
             stop_at += cfg.hysteresis_mm
         if self.state is not SafetyState.GO:
             slow_at += cfg.hysteresis_mm
+        what = f"{sensor.face} {'narrow ' if narrow else ''}obstacle at {distance} mm"
         if distance < stop_at:
-            reason = f"{sensor.face} obstacle at {distance} mm, stop distance {stop_at:.0f} mm"
+            reason = f"{what}, stop distance {stop_at:.0f} mm"
             return _Finding(SafetyState.STOP, sensor, distance, reason, 0.0)
         if distance < slow_at:
-            # Slow enough to stop before the seed's radius, so the robot creeps up to it.
-            room = distance - cfg.front_radius_mm - cfg.hysteresis_mm
+            # Slow enough to stop before the seed's radius (plus any narrow margin), so the
+            # robot creeps up to it.
+            room = distance - cfg.front_radius_mm - cfg.hysteresis_mm - margin
             limit = max(cfg.min_slow_speed_mm_s, safe_speed_mm_s(cfg, room))
-            reason = f"{sensor.face} obstacle at {distance} mm, slowing"
+            reason = f"{what}, slowing"
             return _Finding(
                 SafetyState.SLOW, sensor, distance, reason, min(limit, self.max_speed_mm_s)
             )
@@ -136,7 +167,11 @@ class CollisionMonitor:
         """The verdict for ``scan`` at forward speed ``speed_mm_s`` (None: unknown, assume max)."""
         speed = self.max_speed_mm_s if speed_mm_s is None else speed_mm_s
         readings = {r.sensor: r for r in scan.readings}
-        findings = [self._assess(s, readings.get(s.id), speed) for s in self.sensors.values()]
+        narrow = self.narrow(readings)
+        findings = [
+            self._assess(s, readings.get(s.id), speed, s.id in narrow)
+            for s in self.sensors.values()
+        ]
         worst = max(
             findings,
             key=lambda f: (
