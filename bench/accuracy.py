@@ -282,7 +282,11 @@ def _approach(
         seed=int(speed),
     )
     monitor = CollisionMonitor(
-        config.tof.sensors, config.collision, max_speed_mm_s=config.motor.max_speed_mm_s
+        config.tof.sensors,
+        config.collision,
+        max_speed_mm_s=config.motor.max_speed_mm_s,
+        max_range_mm=config.tof.max_range_mm,
+        body_width_mm=config.geometry.width_mm,
     )
     half_base = spec.wheel_base_mm / 2
     clearance = math.inf

@@ -111,6 +111,12 @@ class CollisionConfig(Section):
     unknown_speed_mm_s: float | None = Field(
         None, gt=0, description="speed assumed without fresh odometry; None: motor max speed"
     )
+    memory_s: float = Field(
+        1.5,
+        ge=0,
+        description="a front return inside the body's corridor keeps blocking this long after "
+        "it drops out of view (0: no memory)",
+    )
     narrow_margin_mm: float = Field(
         250.0,
         ge=0,

@@ -79,7 +79,7 @@ def test_slowdown_zone_before_stop_zone_limits_speed() -> None:
 
 
 def test_hysteresis_keeps_stop_until_clearance_exceeds_radius_plus_margin() -> None:
-    m = monitor(hysteresis_mm=30)
+    m = monitor(hysteresis_mm=30, memory_s=0)
     m.update(scan(CLEAR), 0, 1)
     assert m.update(scan({**CLEAR, **ahead(199)}), 0, 2).state is SafetyState.STOP
     # Jitter just above the radius does not release the stop...
@@ -92,9 +92,11 @@ def test_hysteresis_keeps_stop_until_clearance_exceeds_radius_plus_margin() -> N
 
 def test_obstacle_leaving_gives_clear_again() -> None:
     m = monitor()
-    m.update(scan(CLEAR), 0, 1)
-    m.update(scan({**CLEAR, 2: 100}), 0, 2)
-    status = m.update(scan(CLEAR), 0, 3)
+    m.update(scan(CLEAR, t=0.0), 0, 1)
+    m.update(scan({**CLEAR, 2: 100}, t=0.1), 0, 2)
+    # Out of view it is remembered for memory_s (it may only have left the cone), then clear.
+    assert m.update(scan(CLEAR, t=0.2), 0, 3).state is SafetyState.STOP
+    status = m.update(scan(CLEAR, t=0.2 + m.cfg.memory_s), 0, 4)
     assert status.state is SafetyState.GO and status.reason == "clear again"
 
 
@@ -188,3 +190,34 @@ def test_narrow_margin_slows_earlier_so_the_robot_can_still_stop() -> None:
     room = 700 - cfg.front_radius_mm - cfg.hysteresis_mm - cfg.narrow_margin_mm
     assert narrow.speed_limit_mm_s == pytest.approx(safe_speed_mm_s(cfg, room))
     assert narrow.speed_limit_mm_s < wide.speed_limit_mm_s
+
+
+def test_a_return_that_drops_out_of_view_up_close_still_blocks() -> None:
+    # A seat edge seen at 600 mm leaves the top of the cone; the pole behind reads 850 mm.
+    m = monitor(memory_s=1.5)
+    m.update(scan({**CLEAR, **ahead(2000)}, t=0.0), 0, 1)
+    m.update(scan({**CLEAR, **ahead(600)}, t=0.1), 300, 2)
+    # 0.6 s later at 300 mm/s the seat is 180 mm closer, though no sensor sees it any more.
+    status = m.update(scan({**CLEAR, **ahead(850)}, t=0.7), 300, 3)
+    assert status.distance_mm == pytest.approx(600 - 300 * 0.6, abs=1)
+    assert "seen 0.6 s ago" in status.reason
+    # Past the memory it no longer counts.
+    later = m.update(scan({**CLEAR, **ahead(850)}, t=2.0), 0, 4)
+    assert later.distance_mm is None or later.distance_mm >= 850
+
+
+def test_only_returns_inside_the_body_corridor_are_remembered() -> None:
+    # An outer sensor's cone leaves the body's width beyond ~340 mm: a return there may be a
+    # glance off a side wall, so it is not remembered; an inner sensor's return at 700 mm is.
+    m = monitor(memory_s=1.5)
+    m.update(scan({**CLEAR, 2: 700}, t=0.0), 0, 1)
+    assert m.update(scan(CLEAR, t=0.1), 0, 2).state is SafetyState.GO
+    m.update(scan({**CLEAR, 3: 700}, t=0.2), 0, 3)
+    assert m.update(scan(CLEAR, t=0.3), 0, 4).distance_mm == 700
+
+
+def test_memory_keeps_the_nearest_return_per_sensor() -> None:
+    m = monitor(memory_s=1.5)
+    m.update(scan({**CLEAR, **ahead(500)}, t=0.0), 0, 1)
+    m.update(scan({**CLEAR, **ahead(650)}, t=0.1), 0, 2)
+    assert m.update(scan(CLEAR, t=0.2), 0, 3).distance_mm == 500
