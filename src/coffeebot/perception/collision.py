@@ -189,13 +189,13 @@ class CollisionMonitor:
                 f"sensor {sensor.id} stale: no valid reading for {self._missed[sensor.id]} scans",
                 0.0,
             )
-        what = ""
+        seen = ""
         if distance is not None and sensor.face == "front":
             self._remember(sensor, distance, narrow, now)
         recalled = self._recall(sensor, now) if sensor.face == "front" else None
         if recalled is not None and (distance is None or recalled[0] < distance):
             distance, narrow = round(recalled[0]), recalled[1].narrow
-            what = f" (seen {now - recalled[1].t_s:.1f} s ago)"
+            seen = f" (seen {now - recalled[1].t_s:.1f} s ago)"
         if distance is None or distance > self.max_range_mm:
             return _Finding(SafetyState.GO, sensor, None, "clear", self.max_speed_mm_s)
         # Leaving a zone needs extra clearance: the thresholds grow while we are inside it.
@@ -206,7 +206,7 @@ class CollisionMonitor:
             stop_at += cfg.hysteresis_mm
         if self.state is not SafetyState.GO:
             slow_at += cfg.hysteresis_mm
-        what = f"{sensor.face} {'narrow ' if narrow else ''}obstacle at {distance} mm{what}"
+        what = f"{sensor.face} {'narrow ' if narrow else ''}obstacle at {distance} mm{seen}"
         if distance < stop_at:
             reason = f"{what}, stop distance {stop_at:.0f} mm"
             return _Finding(SafetyState.STOP, sensor, distance, reason, 0.0)
