@@ -111,6 +111,29 @@ class CollisionConfig(Section):
     unknown_speed_mm_s: float | None = Field(
         None, gt=0, description="speed assumed without fresh odometry; None: motor max speed"
     )
+    memory_s: float = Field(
+        1.5,
+        ge=0,
+        description="a front return inside the body's corridor keeps blocking this long after "
+        "it drops out of view (0: no memory)",
+    )
+    narrow_margin_mm: float = Field(
+        250.0,
+        ge=0,
+        description="extra front clearance for a narrow return: a pole can carry a seat or "
+        "table top above the cones (a swivel chair's seat reaches ~240 mm beyond its pole)",
+    )
+    narrow_max_sensors: int = Field(
+        2, ge=1, description="a return seen by at most this many adjacent front sensors is narrow"
+    )
+    narrow_depth_mm: float = Field(
+        300.0, gt=0, description="the other front sensors read at least this much further"
+    )
+    narrow_max_range_mm: float = Field(
+        1200.0,
+        gt=0,
+        description="narrow returns further than this are not judged (glances off side walls)",
+    )
 
 
 class AngleConfig(Section):
@@ -154,6 +177,12 @@ class DoorConfig(Section):
     )
     match_gate_mm: float = Field(
         1200.0, gt=0, description="a detection further than this from a plan door is unmatched"
+    )
+    max_feature_mm: float = Field(
+        2500.0,
+        gt=0,
+        description="travel after a rising edge without the wall coming back: report the door "
+        "from its near edge alone (wider than the 1700 mm openings)",
     )
 
 

@@ -6,10 +6,19 @@ import pytest
 from perception_helpers import robot, scan
 
 from coffeebot.config import CollisionConfig
-from coffeebot.messages import ReadingStatus, SafetyState
+from coffeebot.messages import RangeReading, ReadingStatus, SafetyState
 from coffeebot.perception.collision import CollisionMonitor, safe_speed_mm_s, stop_distance_mm
 
 CLEAR = {0: 300, 1: 300, 6: 900, 7: 900}  # keeping right, as the seed's robot did
+
+
+def by_sensor(distances: dict[int, int | None]) -> dict[int, RangeReading]:
+    return {r.sensor: r for r in scan(distances).readings}
+
+
+def ahead(distance: int) -> dict[int, int]:
+    """A wide obstacle: all four front sensors read it (a narrow one gets extra clearance)."""
+    return dict.fromkeys((2, 3, 4, 5), distance)
 
 
 def monitor(**overrides: float) -> CollisionMonitor:
@@ -70,22 +79,24 @@ def test_slowdown_zone_before_stop_zone_limits_speed() -> None:
 
 
 def test_hysteresis_keeps_stop_until_clearance_exceeds_radius_plus_margin() -> None:
-    m = monitor(hysteresis_mm=30)
+    m = monitor(hysteresis_mm=30, memory_s=0)
     m.update(scan(CLEAR), 0, 1)
-    assert m.update(scan({**CLEAR, 3: 199}), 0, 2).state is SafetyState.STOP
+    assert m.update(scan({**CLEAR, **ahead(199)}), 0, 2).state is SafetyState.STOP
     # Jitter just above the radius does not release the stop...
-    assert m.update(scan({**CLEAR, 3: 210}), 0, 3).state is SafetyState.STOP
-    assert m.update(scan({**CLEAR, 3: 205}), 0, 4).state is SafetyState.STOP
+    assert m.update(scan({**CLEAR, **ahead(210)}), 0, 3).state is SafetyState.STOP
+    assert m.update(scan({**CLEAR, **ahead(205)}), 0, 4).state is SafetyState.STOP
     # ...clearing the radius plus the hysteresis does, and says so.
-    released = m.update(scan({**CLEAR, 3: 240}), 0, 5)
+    released = m.update(scan({**CLEAR, **ahead(240)}), 0, 5)
     assert released.state is not SafetyState.STOP
 
 
 def test_obstacle_leaving_gives_clear_again() -> None:
     m = monitor()
-    m.update(scan(CLEAR), 0, 1)
-    m.update(scan({**CLEAR, 2: 100}), 0, 2)
-    status = m.update(scan(CLEAR), 0, 3)
+    m.update(scan(CLEAR, t=0.0), 0, 1)
+    m.update(scan({**CLEAR, 2: 100}, t=0.1), 0, 2)
+    # Out of view it is remembered for memory_s (it may only have left the cone), then clear.
+    assert m.update(scan(CLEAR, t=0.2), 0, 3).state is SafetyState.STOP
+    status = m.update(scan(CLEAR, t=0.2 + m.cfg.memory_s), 0, 4)
     assert status.state is SafetyState.GO and status.reason == "clear again"
 
 
@@ -140,5 +151,73 @@ def test_nothing_within_range_is_clear_not_stop() -> None:
 def test_unknown_speed_assumes_max() -> None:
     m = monitor()
     m.update(scan(CLEAR), 0, 1)
-    assert m.update(scan({**CLEAR, 3: 700}), None, 2).state is SafetyState.STOP
-    assert m.update(scan({**CLEAR, 3: 700}), 0, 3).state is SafetyState.GO
+    assert m.update(scan({**CLEAR, **ahead(700)}), None, 2).state is SafetyState.STOP
+    assert m.update(scan({**CLEAR, **ahead(700)}), 0, 3).state is SafetyState.GO
+
+
+def test_narrow_return_gets_the_overhang_margin() -> None:
+    # One front sensor sees a pole the others do not: a seat may overhang it above the cones.
+    m = monitor(narrow_margin_mm=250)
+    m.update(scan(CLEAR), 0, 1)
+    status = m.update(scan({**CLEAR, 3: 400}), 0, 2)
+    assert (status.state, status.sensor) == (SafetyState.STOP, 3)
+    assert "narrow" in status.reason
+    # The same distance across the whole front is a wide obstacle: the seed radius applies.
+    assert monitor().update(scan({**CLEAR, **ahead(400)}), 0, 1).state is SafetyState.SLOW
+
+
+def test_narrow_means_at_most_two_adjacent_sensors_with_the_rest_further() -> None:
+    m = monitor()
+    # Two adjacent sensors on one pole; two separate legs; a wall glimpsed by three sensors.
+    assert m.narrow(by_sensor({**CLEAR, 3: 500, 4: 520})) == {3, 4}
+    assert m.narrow(by_sensor({**CLEAR, 2: 500, 5: 520})) == {2, 5}
+    assert m.narrow(by_sensor({**CLEAR, 2: 500, 3: 520, 4: 700})) == set()
+    # Neighbours within the depth count as the same object, even if a little further.
+    assert m.narrow(by_sensor({**CLEAR, 3: 500, 4: 760, 5: 790})) == set()
+    # Beyond the range limit nothing is judged narrow (a glance off a side wall).
+    assert m.narrow(by_sensor({**CLEAR, 2: 1500})) == set()
+
+
+def test_narrow_margin_slows_earlier_so_the_robot_can_still_stop() -> None:
+    cfg = robot().collision
+    m = monitor()
+    m.update(scan(CLEAR), 0, 1)
+    wide = m.update(scan({**CLEAR, **ahead(700)}), 400, 2)
+    m = monitor()
+    m.update(scan(CLEAR), 0, 1)
+    narrow = m.update(scan({**CLEAR, 4: 700}), 400, 2)
+    assert narrow.state is SafetyState.SLOW
+    room = 700 - cfg.front_radius_mm - cfg.hysteresis_mm - cfg.narrow_margin_mm
+    assert narrow.speed_limit_mm_s == pytest.approx(safe_speed_mm_s(cfg, room))
+    assert narrow.speed_limit_mm_s < wide.speed_limit_mm_s
+
+
+def test_a_return_that_drops_out_of_view_up_close_still_blocks() -> None:
+    # A seat edge seen at 600 mm leaves the top of the cone; the pole behind reads 850 mm.
+    m = monitor(memory_s=1.5)
+    m.update(scan({**CLEAR, **ahead(2000)}, t=0.0), 0, 1)
+    m.update(scan({**CLEAR, **ahead(600)}, t=0.1), 300, 2)
+    # 0.6 s later at 300 mm/s the seat is 180 mm closer, though no sensor sees it any more.
+    status = m.update(scan({**CLEAR, **ahead(850)}, t=0.7), 300, 3)
+    assert status.distance_mm == pytest.approx(600 - 300 * 0.6, abs=1)
+    assert "seen 0.6 s ago" in status.reason
+    # Past the memory it no longer counts.
+    later = m.update(scan({**CLEAR, **ahead(850)}, t=2.0), 0, 4)
+    assert later.distance_mm is None or later.distance_mm >= 850
+
+
+def test_only_returns_inside_the_body_corridor_are_remembered() -> None:
+    # An outer sensor's cone leaves the body's width beyond ~340 mm: a return there may be a
+    # glance off a side wall, so it is not remembered; an inner sensor's return at 700 mm is.
+    m = monitor(memory_s=1.5)
+    m.update(scan({**CLEAR, 2: 700}, t=0.0), 0, 1)
+    assert m.update(scan(CLEAR, t=0.1), 0, 2).state is SafetyState.GO
+    m.update(scan({**CLEAR, 3: 700}, t=0.2), 0, 3)
+    assert m.update(scan(CLEAR, t=0.3), 0, 4).distance_mm == 700
+
+
+def test_memory_keeps_the_nearest_return_per_sensor() -> None:
+    m = monitor(memory_s=1.5)
+    m.update(scan({**CLEAR, **ahead(500)}, t=0.0), 0, 1)
+    m.update(scan({**CLEAR, **ahead(650)}, t=0.1), 0, 2)
+    assert m.update(scan(CLEAR, t=0.2), 0, 3).distance_mm == 500

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from perception_helpers import hallway_floor, pose, robot, scan_at
+from perception_helpers import hallway_floor, pose, robot, scan, scan_at
 
 from coffeebot.config import DoorConfig
 from coffeebot.floorplan import Floor, parse_floorplan
@@ -117,3 +117,62 @@ def test_no_readings_while_standing_still() -> None:
     for k in range(50):
         assert detector.update(s, k, pose(5900, -300, 0.0), floor, 0.0, RATE_HZ) == []
     assert all(not t.samples for t in detector.tracks.values())
+
+
+def drive_synthetic(
+    door_along: dict[int, tuple[float, float]],
+    *,
+    speed: float = 300.0,
+    half_fov_deg: float = 13.5,
+    start: float = 4000.0,
+    end: float = 8000.0,
+) -> list[tuple[float, DoorEvent]]:
+    """Drive along ``hallway_floor`` with the right sensors reading the recess (395 mm instead
+    of the wall's 295 mm) while their own along position is inside ``door_along[sensor]``.
+
+    Returns each event with the front right sensor's along position when it came.
+    """
+    floor = hallway_floor()
+    sensors = robot().tof.sensors
+    detector = DoorDetector(sensors, DoorConfig(), half_fov_deg)
+    events: list[tuple[float, DoorEvent]] = []
+    for k, x in enumerate(np.arange(start, end, speed / RATE_HZ)):
+        distances: dict[int, int | None] = {}
+        for s in sensors:
+            if s.face == "right":
+                lo, hi = door_along[s.id]
+                distances[s.id] = 395 if lo <= x + s.x_mm <= hi else 295
+            elif s.face == "left":
+                distances[s.id] = 1195
+        found = detector.update(scan(distances), k, pose(float(x), -300, 0.0), floor, speed, 10)
+        events += [(float(x) + sensors[1].x_mm, e) for e in found]
+    return events
+
+
+@pytest.mark.parametrize("blur", [0.0, 70.0, 140.0])
+def test_door_centre_from_both_edges_is_free_of_the_cone_blur(blur: float) -> None:
+    # A wide cone reporting the nearest return sees the recess only between the edges moved
+    # inwards by its footprint (71 mm for 13.5 degrees at 295 mm), whatever it turns out to be.
+    seen = (5550.0 + blur, 6450.0 - blur)
+    events = drive_synthetic({0: seen, 1: seen})
+    assert len(events) == 1
+    sensor_at, event = events[0]
+    assert event.room == "102"
+    assert event.x_mm == pytest.approx(6000, abs=30 / 2 + 1)
+    assert sensor_at > seen[1], "reported once the wall has come back"
+
+
+def test_the_two_sensors_on_a_side_are_averaged() -> None:
+    events = drive_synthetic({1: (5610.0, 6510.0), 0: (5530.0, 6430.0)})
+    assert len(events) == 1
+    assert events[0][1].x_mm == pytest.approx(6020, abs=16)
+
+
+def test_wall_not_coming_back_falls_back_to_the_near_edge_and_the_plan_width() -> None:
+    cfg = DoorConfig()
+    events = drive_synthetic({0: (5550.0, 1e9), 1: (5550.0, 1e9)}, half_fov_deg=0.0, end=9000)
+    assert len(events) == 1
+    sensor_at, event = events[0]
+    assert event.room == "102"
+    assert event.x_mm == pytest.approx(6000, abs=16)
+    assert sensor_at >= 5550 + cfg.max_feature_mm

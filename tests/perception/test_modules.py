@@ -33,8 +33,9 @@ async def test_collision_verdict_in_the_same_loop_turn_as_the_scan() -> None:
     daemon = Daemon(board, [CollisionModule(robot())])
     await daemon.start()
     seqs = []
-    for distance in (2000, 150, 2000):
-        envelope = board.publish(RANGE_SCAN, scan({0: 300, 1: 300}, default=distance))
+    # Scans far enough apart that the obstacle memory has let go of the 150 mm return.
+    for k, distance in enumerate((2000, 150, 2000)):
+        envelope = board.publish(RANGE_SCAN, scan({0: 300, 1: 300}, default=distance, t=2.0 * k))
         verdict = await board.next(COLLISION, timeout=1.0)
         seqs.append((envelope.seq, verdict.msg.scan_seq, verdict.msg.state))
     await daemon.shutdown()

@@ -32,6 +32,7 @@ class CollisionModule(Module):
             cfg.collision,
             max_speed_mm_s=cfg.collision.unknown_speed_mm_s or cfg.motor.max_speed_mm_s,
             max_range_mm=cfg.tof.max_range_mm,
+            body_width_mm=cfg.geometry.width_mm,
         )
 
     def _speed(self, ctx: ModuleContext) -> float | None:

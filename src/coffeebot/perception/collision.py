@@ -9,6 +9,21 @@ that is unhealthy, reports a hardware/bus failure, or has had no usable reading 
 ``stale_cycles`` scans makes the verdict "stop" (driving blind is never "go"); a sensor that
 sees nothing within its range is clear.
 
+Beyond that, a return seen by only one or two adjacent front sensors while the others read
+much further is narrow: a pole, a chair leg, a person's legs. What stands on a pole often
+spreads out above the cones (a swivel chair's seat overhangs its pole by ~240 mm at
+430-500 mm, where the body is), so a narrow return gets ``narrow_margin_mm`` more clearance,
+in the stop distance and in the slowdown speed alike.
+
+Things also drop out of view up close: a seat's edge leaves the top of the cone, a chair leg
+falls between what the cone resolves, a person steps out of the cone and back. So a front
+return that can only lie inside the body's corridor (the cone's whole footprint at that range
+is within the body's width, so it cannot be a glance off a side wall) is remembered for
+``memory_s``: its distance shrinks by the distance driven since (integrated from the speed),
+and while it is nearer than what the sensor now reads it stands in for the reading. Only the
+nearest such return per sensor is kept. Turning on the spot is not tracked: it does not close
+the distance, and the memory is short.
+
 Side readings measure the gap from the body directly (the sensors sit on the body's sides),
 and so do front readings, so the radii apply to the raw distances.
 """
@@ -21,6 +36,7 @@ from dataclasses import dataclass
 
 from coffeebot.config import CollisionConfig, TofSensorConfig
 from coffeebot.messages import CollisionStatus, RangeReading, RangeScan, ReadingStatus, SafetyState
+from coffeebot.perception.geometry import valid_distance
 
 NOTHING_IN_RANGE = frozenset({ReadingStatus.NO_TARGET, ReadingStatus.OUT_OF_BOUNDS})
 """Statuses meaning "no target within range": the face is clear, not blind."""
@@ -29,6 +45,17 @@ FAILED = frozenset({ReadingStatus.HARDWARE_FAIL, ReadingStatus.BUS_ERROR})
 """Statuses meaning the sensor itself is broken: stop at once, do not wait for staleness."""
 
 _RANK = {SafetyState.GO: 0, SafetyState.SLOW: 1, SafetyState.STOP: 2}
+
+
+@dataclass(frozen=True)
+class _Sighting:
+    """A front return remembered in the robot's frame of travel."""
+
+    distance_mm: float
+    travel_mm: float
+    """The odometer when it was seen."""
+    t_s: float
+    narrow: bool
 
 
 @dataclass(frozen=True)
@@ -71,6 +98,7 @@ class CollisionMonitor:
         cfg: CollisionConfig,
         max_speed_mm_s: float,
         max_range_mm: int = 4000,
+        body_width_mm: float = 510.0,
     ) -> None:
         self.cfg = cfg
         self.sensors = {s.id: s for s in sensors}
@@ -80,6 +108,31 @@ class CollisionMonitor:
         """Seed rule: the robot starts in "stop" and only goes once every face is clear."""
         self._missed = dict.fromkeys(self.sensors, cfg.stale_cycles)
         """Consecutive scans without a usable reading; starts stale so the first scan counts."""
+        self._corridor_mm = {
+            s.id: max(0.0, body_width_mm / 2.0 - abs(s.y_mm))
+            / math.tan(math.radians(s.fov_deg / 2))
+            for s in self.sensors.values()
+            if s.face == "front"
+        }
+        """Per front sensor: the range within which its whole cone lies inside the body's width."""
+        self._memory: dict[int, _Sighting] = {}
+        self._travel_mm = 0.0
+        self._last_t: float | None = None
+
+    def _recall(self, sensor: TofSensorConfig, now: float) -> tuple[float, _Sighting] | None:
+        """The remembered return of ``sensor`` and its distance now, unless it has expired."""
+        seen = self._memory.get(sensor.id)
+        if seen is None or now - seen.t_s > self.cfg.memory_s:
+            self._memory.pop(sensor.id, None)
+            return None
+        return max(0.0, seen.distance_mm - (self._travel_mm - seen.travel_mm)), seen
+
+    def _remember(self, sensor: TofSensorConfig, distance: int, narrow: bool, now: float) -> None:
+        if self.cfg.memory_s <= 0 or distance > self._corridor_mm.get(sensor.id, 0.0):
+            return
+        recalled = self._recall(sensor, now)
+        if recalled is None or distance <= recalled[0]:
+            self._memory[sensor.id] = _Sighting(distance, self._travel_mm, now, narrow)
 
     def _radius(self, face: str, speed_mm_s: float) -> float:
         if face == "front":
@@ -88,8 +141,34 @@ class CollisionMonitor:
             return stop_distance_mm(self.cfg, -speed_mm_s)
         return self.cfg.side_radius_mm
 
+    def narrow(self, readings: dict[int, RangeReading]) -> frozenset[int]:
+        """Front sensors whose return is narrow: it and the adjacent sensors reading within
+        ``narrow_depth_mm`` beyond it form a run of at most ``narrow_max_sensors``, so the
+        sensors on either side of the run read much further (or nothing)."""
+        cfg = self.cfg
+        row = sorted((s for s in self.sensors.values() if s.face == "front"), key=lambda s: s.y_mm)
+        distances = [valid_distance(readings.get(s.id)) for s in row]
+        found: set[int] = set()
+        for i, distance in enumerate(distances):
+            if distance is None or distance > cfg.narrow_max_range_mm:
+                continue
+            near = [d is not None and d < distance + cfg.narrow_depth_mm for d in distances]
+            lo, hi = i, i
+            while lo > 0 and near[lo - 1]:
+                lo -= 1
+            while hi < len(row) - 1 and near[hi + 1]:
+                hi += 1
+            if hi - lo + 1 <= cfg.narrow_max_sensors:
+                found.add(row[i].id)
+        return frozenset(found)
+
     def _assess(
-        self, sensor: TofSensorConfig, reading: RangeReading | None, speed: float
+        self,
+        sensor: TofSensorConfig,
+        reading: RangeReading | None,
+        speed: float,
+        narrow: bool,
+        now: float,
     ) -> _Finding:
         cfg = self.cfg
         if reading is not None and (not reading.healthy or reading.status in FAILED):
@@ -110,23 +189,33 @@ class CollisionMonitor:
                 f"sensor {sensor.id} stale: no valid reading for {self._missed[sensor.id]} scans",
                 0.0,
             )
+        seen = ""
+        if distance is not None and sensor.face == "front":
+            self._remember(sensor, distance, narrow, now)
+        recalled = self._recall(sensor, now) if sensor.face == "front" else None
+        if recalled is not None and (distance is None or recalled[0] < distance):
+            distance, narrow = round(recalled[0]), recalled[1].narrow
+            seen = f" (seen {now - recalled[1].t_s:.1f} s ago)"
         if distance is None or distance > self.max_range_mm:
             return _Finding(SafetyState.GO, sensor, None, "clear", self.max_speed_mm_s)
         # Leaving a zone needs extra clearance: the thresholds grow while we are inside it.
-        stop_at = self._radius(sensor.face, speed)
+        margin = cfg.narrow_margin_mm if narrow else 0.0
+        stop_at = self._radius(sensor.face, speed) + margin
         slow_at = stop_at + (cfg.slowdown_extra_mm if sensor.face in ("front", "rear") else 0.0)
         if self.state is SafetyState.STOP:
             stop_at += cfg.hysteresis_mm
         if self.state is not SafetyState.GO:
             slow_at += cfg.hysteresis_mm
+        what = f"{sensor.face} {'narrow ' if narrow else ''}obstacle at {distance} mm{seen}"
         if distance < stop_at:
-            reason = f"{sensor.face} obstacle at {distance} mm, stop distance {stop_at:.0f} mm"
+            reason = f"{what}, stop distance {stop_at:.0f} mm"
             return _Finding(SafetyState.STOP, sensor, distance, reason, 0.0)
         if distance < slow_at:
-            # Slow enough to stop before the seed's radius, so the robot creeps up to it.
-            room = distance - cfg.front_radius_mm - cfg.hysteresis_mm
+            # Slow enough to stop before the seed's radius (plus any narrow margin), so the
+            # robot creeps up to it.
+            room = distance - cfg.front_radius_mm - cfg.hysteresis_mm - margin
             limit = max(cfg.min_slow_speed_mm_s, safe_speed_mm_s(cfg, room))
-            reason = f"{sensor.face} obstacle at {distance} mm, slowing"
+            reason = f"{what}, slowing"
             return _Finding(
                 SafetyState.SLOW, sensor, distance, reason, min(limit, self.max_speed_mm_s)
             )
@@ -135,8 +224,16 @@ class CollisionMonitor:
     def update(self, scan: RangeScan, speed_mm_s: float | None, scan_seq: int) -> CollisionStatus:
         """The verdict for ``scan`` at forward speed ``speed_mm_s`` (None: unknown, assume max)."""
         speed = self.max_speed_mm_s if speed_mm_s is None else speed_mm_s
+        now = scan.cycle_start_s
+        if self._last_t is not None and now > self._last_t:
+            self._travel_mm += max(0.0, speed) * (now - self._last_t)
+        self._last_t = now
         readings = {r.sensor: r for r in scan.readings}
-        findings = [self._assess(s, readings.get(s.id), speed) for s in self.sensors.values()]
+        narrow = self.narrow(readings)
+        findings = [
+            self._assess(s, readings.get(s.id), speed, s.id in narrow, now)
+            for s in self.sensors.values()
+        ]
         worst = max(
             findings,
             key=lambda f: (

@@ -6,12 +6,20 @@ past) a door, which sits ~100 mm behind the wall line. The window shrinks as spe
 door spans ``door_width / (speed / scan_rate)`` readings.
 
 Beyond the seed: every reading is stored with where its ray met the wall along the hallway
-(from the pose at the time), so a detection is turned into a position. The rising edge (the
-split of the window with the largest step) marks the door's near edge; the detection is
-matched to the floor plan's doors and openings on that side by that edge, which names the
-room and tells how far the robot's along-hallway position is off. A much larger step than a
-recess is an opening or an open door. Detections of the same door by the second sensor on the
-side are merged.
+(from the pose at the time), so a detection is turned into a position. The seed's rule finds
+the rising edge (the split of the window with the largest step); the same rule mirrored finds
+the falling edge where the wall comes back, and the door's centre is the midpoint of the two.
+A cone reporting the nearest return blurs both edges inwards by the same amount (its
+footprint on the wall, ~210 mm at 890 mm for a 27 degree cone, and less or more depending on
+how much of the cone a weak target must fill), so the midpoint is free of that bias whatever
+the cone's true ranging behaviour; a single edge would need the footprint correction, which
+is only as good as the ranging model. The price is a later event: the door is reported once
+the sensor has passed it. If the wall does not come back within ``max_feature_mm`` (a wide
+opening, a missed edge), the near edge alone is used with the footprint correction and the
+plan's width. The centre is matched to the floor plan's doors and openings on that side,
+which names the room and tells how far the robot's along-hallway position is off. A much
+larger step than a recess is an opening or an open door. Detections of the same door by the
+second sensor on the side are merged.
 """
 
 from __future__ import annotations
@@ -19,7 +27,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -61,30 +69,70 @@ class _Sample:
     """Where the ray met the wall line, along the hallway axis."""
 
 
+@dataclass(frozen=True)
+class _Edge:
+    """A step between two neighbouring samples found by the window rule."""
+
+    along_mm: float
+    """Midway between the last sample before the step and the first after it."""
+    jump_mm: float
+    wall_mm: float
+    """Distance of the sample on the wall side of the step (for the footprint correction)."""
+
+
 class _Track:
-    """The sliding window of one side sensor."""
+    """The sliding window of one side sensor, and the rising edge of the door it is passing."""
 
     def __init__(self, sensor: TofSensorConfig, capacity: int) -> None:
         self.sensor = sensor
         self.samples: deque[_Sample] = deque(maxlen=capacity)
+        self.rise: _Edge | None = None
 
-    def step(self, window: int, jump_mm: float) -> tuple[float, int] | None:
-        """(step size, index of the first sample after the edge) when the seed rule fires."""
+    def clear(self) -> None:
+        self.samples.clear()
+        self.rise = None
+
+    def step(self, window: int, jump_mm: float, rising: bool) -> _Edge | None:
+        """The seed rule over the newest ``window`` samples: a rise (or, mirrored, a fall) of
+        at least ``jump_mm`` between the halves, located at the split with the largest step."""
         if len(self.samples) < window:
             return None
-        recent = np.fromiter(
-            (s.distance_mm for s in list(self.samples)[-window:]), float, count=window
-        )
+        samples = list(self.samples)[-window:]
+        recent = np.fromiter((s.distance_mm for s in samples), float, count=window)
+        sign = 1.0 if rising else -1.0
         half = window // 2
-        if recent[half:].mean() - recent[:half].mean() < jump_mm:
+        if sign * (recent[half:].mean() - recent[:half].mean()) < jump_mm:
             return None
-        # The edge: the split of the window with the largest step between its two sides.
         cumulative = np.cumsum(recent)
         splits = np.arange(1, window)
         before = cumulative[:-1] / splits
         after = (cumulative[-1] - cumulative[:-1]) / (window - splits)
-        best = int(np.argmax(after - before))
-        return float(after[best] - before[best]), len(self.samples) - window + best + 1
+        steps = sign * (after - before)
+        # The least-squares step fit: the split that explains most of the variance (a plain
+        # largest difference of means favours splits near the window's ends).
+        explained = np.where(steps > 0, splits * (window - splits) * steps**2, -1.0)
+        best = int(np.argmax(explained))
+        first, last = samples[best], samples[best + 1]
+        wall = first if rising else last
+        return _Edge((first.along_mm + last.along_mm) / 2.0, float(steps[best]), wall.distance_mm)
+
+    def drop_before(self, along_mm: float, sign: float) -> None:
+        """Forget the samples taken before ``along_mm`` (in the travel direction)."""
+        while self.samples and sign * (self.samples[0].along_mm - along_mm) < 0:
+            self.samples.popleft()
+
+
+@dataclass(frozen=True)
+class _Passed:
+    """A door one sensor has passed, before it is published."""
+
+    track: _Track
+    side: Side
+    rise: _Edge
+    centre: float
+    """Along the hallway; from both edges, or from the near edge and the width."""
+    both_edges: bool
+    window: int
 
 
 class DoorDetector:
@@ -107,11 +155,13 @@ class DoorDetector:
             if s.face in ("left", "right")
         }
         self._last_span: dict[Side, tuple[float, float]] = {}
+        self._pending: dict[Side, _Passed] = {}
 
     def reset(self) -> None:
         for track in self.tracks.values():
-            track.samples.clear()
+            track.clear()
         self._last_span.clear()
+        self._pending.clear()
 
     def _distance(self, reading: RangeReading | None) -> float | None:
         """A window value: valid distances clamped, "no target" as the clamp, else unusable."""
@@ -141,6 +191,7 @@ class DoorDetector:
             return []
         frame = TravelFrame.for_heading(floor, pose.heading_deg)
         tan_half_fov = math.tan(math.radians(self.half_fov_deg))
+        sign = -1.0 if frame.reversed else 1.0
         readings = {r.sensor: r for r in scan.readings}
         events = []
         for track in self.tracks.values():
@@ -154,46 +205,88 @@ class DoorDetector:
                 sx + reach * math.cos(math.radians(look)), sy + reach * math.sin(math.radians(look))
             )
             track.samples.append(_Sample(distance, along))
-            # The cone's footprint on the wall hides part of the door: size the window by what
-            # the sensor can see of it at its current distance from the wall.
-            visible = max(cfg.door_width_mm - 2.0 * distance * tan_half_fov, MIN_VISIBLE_MM)
-            window = window_size(cfg, speed_mm_s, scan_rate_hz, visible)
-            fired = track.step(window, cfg.jump_mm)
-            if fired is not None:
-                event = self._event(track, fired, frame, pose, scan_seq, window)
-                if event is not None:
-                    events.append(event)
-                track.samples.clear()
+            footprint = 2.0 * distance * tan_half_fov
+            # Before the rise, the window spans what the cone can see of the door (its
+            # footprint on the wall hides part of it); after, the wall's return spreads over
+            # the footprint, so the fall is confirmed over that.
+            stretch = cfg.door_width_mm - footprint if track.rise is None else footprint
+            window = window_size(cfg, speed_mm_s, scan_rate_hz, max(stretch, MIN_VISIBLE_MM))
+            edge = track.step(window, cfg.jump_mm, rising=track.rise is None)
+            if track.rise is None:
+                if edge is not None:
+                    track.rise = edge
+                    track.drop_before(edge.along_mm, sign)
+                continue
+            if edge is None and sign * (along - track.rise.along_mm) <= cfg.max_feature_mm:
+                continue
+            passed = self._passed(track, track.rise, edge, frame, window)
+            track.clear()
+            events += self._report(passed, frame, scan_seq)
+        for side, pending in list(self._pending.items()):
+            if not self._other_inside(pending):
+                del self._pending[side]
+                events += self._publish(pending, frame, scan_seq)
         return events
 
-    def _event(
-        self,
-        track: _Track,
-        fired: tuple[float, int],
-        frame: TravelFrame,
-        pose: PoseEstimate,
-        scan_seq: int,
-        window: int,
-    ) -> DoorEvent | None:
+    def _passed(
+        self, track: _Track, rise: _Edge, fall: _Edge | None, frame: TravelFrame, window: int
+    ) -> _Passed:
+        """One sensor's estimate of the door between ``rise`` and ``fall`` (None: the wall
+        never came back, so the near edge and the plan's width are all there is)."""
+        side = frame.hallway_side("left" if track.sensor.face == "left" else "right")
+        if fall is not None:
+            centre = (rise.along_mm + fall.along_mm) / 2.0
+            return _Passed(track, side, rise, centre, both_edges=True, window=window)
         cfg = self.cfg
-        jump, index = fired
-        samples = list(track.samples)
-        wall = samples[index - 1]
         sign = -1.0 if frame.reversed else 1.0
         # The sensor only sees the recess once its whole effective cone is past the edge.
-        footprint = wall.distance_mm * math.tan(math.radians(self.half_fov_deg))
-        edge = (wall.along_mm + samples[index].along_mm) / 2.0 - sign * footprint
-        side = frame.hallway_side("left" if track.sensor.face == "left" else "right")
-        last = self._last_span.get(side)
-        if last is not None and last[0] - 300.0 <= edge <= last[1] + 300.0:
-            return None  # the other sensor on this side already reported this door
-        feature = self._match(frame.floor, side, edge, sign)
+        footprint = rise.wall_mm * math.tan(math.radians(self.half_fov_deg))
+        near = rise.along_mm - sign * footprint
+        feature = self._match(frame.floor, side, near + sign * cfg.door_width_mm / 2.0)
         width = feature.width_mm if feature is not None else cfg.door_width_mm
-        centre = edge + sign * width / 2.0
-        self._last_span[side] = (min(edge, edge + sign * width), max(edge, edge + sign * width))
+        return _Passed(track, side, rise, near + sign * width / 2.0, False, window)
+
+    def _other_inside(self, passed: _Passed) -> bool:
+        """Whether the side's other sensor is passing the same door (risen at the same edge)."""
+        return any(
+            other is not passed.track
+            and other.sensor.face == passed.track.sensor.face
+            and other.rise is not None
+            and abs(other.rise.along_mm - passed.rise.along_mm) <= self.cfg.door_width_mm / 2.0
+            for other in self.tracks.values()
+        )
+
+    def _report(self, passed: _Passed, frame: TravelFrame, scan_seq: int) -> list[DoorEvent]:
+        """Publish a passed door, or hold it until the side's other sensor has passed it too:
+        the two sensors' centres have independent errors, so their mean halves the variance."""
+        pending = self._pending.pop(passed.side, None)
+        events: list[DoorEvent] = []
+        if pending is not None:
+            if passed.both_edges and abs(pending.centre - passed.centre) <= (
+                self.cfg.door_width_mm / 2.0
+            ):
+                centre = (pending.centre + passed.centre) / 2.0
+                return self._publish(replace(pending, centre=centre), frame, scan_seq)
+            events += self._publish(pending, frame, scan_seq)
+        if passed.both_edges and self._other_inside(passed):
+            self._pending[passed.side] = passed
+            return events
+        return events + self._publish(passed, frame, scan_seq)
+
+    def _publish(self, passed: _Passed, frame: TravelFrame, scan_seq: int) -> list[DoorEvent]:
+        """The door event for ``passed``, matched to the plan (none if already reported)."""
+        cfg = self.cfg
+        side, centre = passed.side, passed.centre
+        last = self._last_span.get(side)
+        if last is not None and last[0] <= centre <= last[1]:
+            return []  # the other sensor on this side already reported this door
+        sign = -1.0 if frame.reversed else 1.0
+        feature = self._match(frame.floor, side, centre)
+        width = feature.width_mm if feature is not None else cfg.door_width_mm
+        self._last_span[side] = (centre - width / 2.0, centre + width / 2.0)
         wall_d = frame.floor.hallway.width_mm / 2.0 * (1.0 if side == "left" else -1.0)
         x, y = frame.floor.from_hallway(centre, wall_d)
-        kind = "door" if jump <= cfg.max_door_jump_mm else "opening"
+        kind = "door" if passed.rise.jump_mm <= cfg.max_door_jump_mm else "opening"
         room = None
         plan_x = plan_y = correction = None
         if feature is not None:
@@ -201,31 +294,32 @@ class DoorDetector:
             room = feature.room if isinstance(feature, Door) else None
             plan_x, plan_y = frame.floor.from_hallway(feature.at_mm, wall_d)
             correction = sign * (feature.at_mm - centre)
-        return DoorEvent(
-            scan_seq=scan_seq,
-            side=side,
-            sensor=track.sensor.id,
-            kind=kind,
-            floor=frame.floor.level,
-            x_mm=x,
-            y_mm=y,
-            jump_mm=jump,
-            window=window,
-            travel_heading_deg=frame.direction_deg,
-            room=room,
-            plan_x_mm=plan_x,
-            plan_y_mm=plan_y,
-            along_correction_mm=correction,
-            arrived_at_target=room is not None and room == self.target_room,
-        )
+        return [
+            DoorEvent(
+                scan_seq=scan_seq,
+                side=side,
+                sensor=passed.track.sensor.id,
+                kind=kind,
+                floor=frame.floor.level,
+                x_mm=x,
+                y_mm=y,
+                jump_mm=passed.rise.jump_mm,
+                window=passed.window,
+                travel_heading_deg=frame.direction_deg,
+                room=room,
+                plan_x_mm=plan_x,
+                plan_y_mm=plan_y,
+                along_correction_mm=correction,
+                arrived_at_target=room is not None and room == self.target_room,
+            )
+        ]
 
-    def _match(self, floor: Floor, side: Side, edge: float, sign: float) -> Door | Opening | None:
-        """The plan feature on ``side`` whose near edge (in the travel direction) is nearest."""
+    def _match(self, floor: Floor, side: Side, centre: float) -> Door | Opening | None:
+        """The plan feature on ``side`` whose centre is nearest ``centre`` (within the gate)."""
         best: Door | Opening | None = None
         best_gap = self.cfg.match_gate_mm
         for feature in floor.features(side):
-            near = feature.at_mm - sign * feature.width_mm / 2.0
-            gap = abs(near - edge)
+            gap = abs(feature.at_mm - centre)
             if gap <= best_gap:
                 best, best_gap = feature, gap
         return best
