@@ -137,6 +137,13 @@ def test_failed_sensor_stops_at_once(kind: str, kwargs: dict) -> None:
     assert (status.state, status.sensor) == (SafetyState.STOP, 6), kind
 
 
+def test_target_below_minimum_range_stops_at_once() -> None:
+    m = monitor()
+    m.update(scan(CLEAR), 0, 1)
+    status = m.update(scan(CLEAR, status={3: ReadingStatus.TOO_CLOSE}), 0, 2)
+    assert (status.state, status.sensor, status.distance_mm) == (SafetyState.STOP, 3, 0)
+
+
 def test_nothing_within_range_is_clear_not_stop() -> None:
     m = monitor()
     for seq in range(1, 20):  # far longer than stale_cycles

@@ -178,6 +178,8 @@ class CollisionMonitor:
         distance = None
         if reading is not None and reading.status is ReadingStatus.VALID:
             distance = reading.distance_mm
+        elif reading is not None and reading.status is ReadingStatus.TOO_CLOSE:
+            distance = 0  # inside the sensor's minimum range: something is touching close
         nothing = reading is not None and reading.status in NOTHING_IN_RANGE
         usable = distance is not None or nothing
         self._missed[sensor.id] = 0 if usable else self._missed[sensor.id] + 1
