@@ -145,7 +145,8 @@ def test_recording_reads_back_with_schemas_and_counts(live_pass: LivePass) -> No
         if models[name].delivery is Delivery.RELIABLE:
             assert counts.get(name, 0) == n, name
     assert sum(published.values()) - recorder.written == recorder.missed
-    assert counts[RANGE_SCAN.name] > 200 and counts[CURRENT_STATE.name] > 500
+    # ~11 simulated seconds: a real pass, whatever rate a loaded machine manages.
+    assert counts[RANGE_SCAN.name] > 100 and counts[CURRENT_STATE.name] > 300
 
 
 def door_key(event: DoorEvent) -> tuple[Any, ...]:
