@@ -70,6 +70,16 @@ def test_subjects_are_tracked_separately(captured: tuple[logging.Logger, io.Stri
     assert len(lines(stream)) == 2
 
 
+def test_reaching_the_initial_state_is_no_event(captured: tuple[logging.Logger, io.StringIO]):
+    logger, stream = captured
+    link = Transitions(logger, initial={"uwb": "connected"})
+    assert not link.update("uwb", "connected", Event.RECONNECT, "port opened")
+    assert link.update("uwb", "disconnected", Event.DISCONNECT, "unplugged")
+    assert link.update("uwb", "connected", Event.RECONNECT, "port reopened")
+    assert ["event=disconnect" in line for line in lines(stream)] == [True, False]
+    assert "previous=disconnected" in lines(stream)[1]
+
+
 def test_tracebacks_stay_on_one_line(captured: tuple[logging.Logger, io.StringIO]):
     logger, stream = captured
     try:

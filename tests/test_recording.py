@@ -14,7 +14,6 @@ from mcap.writer import Writer
 from coffeebot.board import Board
 from coffeebot.board.recording import (
     Player,
-    PlayStats,
     Recorder,
     RecordingError,
     read_recording,
@@ -35,7 +34,7 @@ from coffeebot.messages import (
     RangeScan,
 )
 from manual_clock import ManualClock, settle
-from traffic import Published, make_recording
+from traffic import Published, make_recording, play_through
 
 
 @pytest.fixture
@@ -84,18 +83,6 @@ def test_info_lists_topics_counts_and_duration(recorded: tuple[Path, Published, 
     assert info.metadata["robot"] == "coffeebot-v1"
     text = info.format()
     assert "tof/scan" in text and "coffeebot.messages.RangeScan" in text
-
-
-async def play_through(player: Player, clock: ManualClock) -> PlayStats:
-    """Run the player, moving the clock to each message's stamp in turn."""
-    task = asyncio.create_task(player.run())
-    while not task.done():
-        deadline = clock.next_deadline()
-        if deadline is None:
-            await asyncio.sleep(0.001)  # the player is reading the file in a thread
-        else:
-            await clock.advance(deadline - clock.now())
-    return task.result()
 
 
 async def test_replay_republishes_the_same_messages_at_the_same_stamps(

@@ -10,7 +10,7 @@ from typing import Any
 from pydantic import BaseModel
 
 from coffeebot.board import Board, Envelope, Topic
-from coffeebot.board.recording import Recorder
+from coffeebot.board.recording import Player, PlayStats, Recorder
 from coffeebot.messages import (
     ALL_TOPICS,
     COLLISION,
@@ -107,3 +107,15 @@ async def make_recording(path: Path) -> tuple[Published, Recorder]:
         published = await drive_traffic(board, clock)
         await settle()
     return published, recorder
+
+
+async def play_through(player: Player, clock: ManualClock) -> PlayStats:
+    """Run the player, moving the clock to each message's stamp in turn."""
+    task = asyncio.create_task(player.run())
+    while not task.done():
+        deadline = clock.next_deadline()
+        if deadline is None:
+            await asyncio.sleep(0.001)  # the player is reading the file in a thread
+        else:
+            await clock.advance(deadline - clock.now())
+    return task.result()

@@ -65,11 +65,17 @@ class Transitions:
 
     A collision module that sees an obstacle in 50 scans a second calls :meth:`update` on every
     scan; only the scan that turns "go" into "stop" produces a log line.
+
+    ``initial`` gives subjects the state they are taken to start in, so that reaching it is
+    not an event: a port that opens at start-up is no "reconnect", one that fails is a
+    "disconnect".
     """
 
-    def __init__(self, logger: logging.Logger) -> None:
+    def __init__(
+        self, logger: logging.Logger, initial: Mapping[str, Hashable] | None = None
+    ) -> None:
         self._logger = logger
-        self._states: dict[str, Hashable] = {}
+        self._states: dict[str, Hashable] = dict(initial or {})
 
     def update(
         self, subject: str, state: Hashable, event: Event, cause: str, **fields: object

@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import errno
 import itertools
+import logging
 from collections.abc import AsyncIterator, Callable
 
 import pytest
@@ -24,6 +25,7 @@ from coffeebot.modules.base import Module, ModuleContext
 from coffeebot.modules.tof_poller import TofPoller
 from coffeebot.sim.clock import SteppedClock
 from coffeebot.sim.i2c import SimTofHardware, make_tof_hardware
+from logged import events
 
 ContextFor = Callable[[Board, Module, Clock], ModuleContext]
 
@@ -93,8 +95,12 @@ async def test_rate_holds_while_one_sensor_nacks(board: Board, hw: SimTofHardwar
     assert not got[-1].readings[3].healthy
 
 
-async def test_failed_sensor_is_reported_and_recovers(board: Board, hw: SimTofHardware) -> None:
+async def test_failed_sensor_is_reported_and_recovers(
+    board: Board, hw: SimTofHardware, caplog: pytest.LogCaptureFixture
+) -> None:
+    caplog.set_level(logging.INFO)
     await scans(board, 2)
+    assert events(caplog, "fault") == events(caplog, "recovered") == []  # a normal start
     with board.subscribe(HEALTH) as health:
         hw.sensors[7 - 5].nack = True
         degraded: Envelope = await health.get()
@@ -108,6 +114,11 @@ async def test_failed_sensor_is_reported_and_recovers(board: Board, hw: SimTofHa
         assert env.msg.component == "tof5" and env.msg.restarts >= 2
     *_, scan = await scans(board, 3)
     assert by_sensor(scan)[5] == (ReadingStatus.VALID, 1002)
+    # However many retries failed, one line when it failed and one when it came back.
+    [fault] = events(caplog, "fault")
+    assert fault.subject == "tof5" and f"[Errno {errno.EREMOTEIO}]" in fault.cause
+    [recovered] = events(caplog, "recovered")
+    assert recovered.subject == "tof5" and recovered.cause == "re-initialised"
 
 
 async def test_status_errors_and_bus_timeout(board: Board, hw: SimTofHardware) -> None:

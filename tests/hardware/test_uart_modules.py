@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
 from collections.abc import AsyncIterator, Callable
 from typing import Any
 
@@ -27,6 +28,7 @@ from coffeebot.modules.motor_driver import MotorDriver
 from coffeebot.modules.uwb_reader import UwbReader
 from coffeebot.sim.dwm1001 import SimDwm1001
 from coffeebot.sim.motor_controller import SimMotorController
+from logged import causes, events
 
 ContextFor = Callable[[Board, Module, Clock], ModuleContext]
 FAST_BACKOFF = (0.02, 0.1)
@@ -84,7 +86,10 @@ async def test_uwb_garbage_and_missing_pos_are_counted_never_published(
         assert board.latest(UWB_FIX) is last  # no position invented for POS-less lines
 
 
-async def test_uwb_recovers_from_tag_reset(sim_dwm: SimDwm1001, context_for: ContextFor) -> None:
+async def test_uwb_recovers_from_tag_reset(
+    sim_dwm: SimDwm1001, context_for: ContextFor, caplog: pytest.LogCaptureFixture
+) -> None:
+    caplog.set_level(logging.INFO)
     reader = uwb_reader(sim_dwm)
     async with running(reader, context_for) as board:
         await board.next(UWB_FIX, timeout=5.0)
@@ -92,12 +97,18 @@ async def test_uwb_recovers_from_tag_reset(sim_dwm: SimDwm1001, context_for: Con
         await until(lambda: reader.counters.silences == 1 and reader.counters.connects == 2)
         await board.next(UWB_FIX, timeout=5.0)
     assert sim_dwm.resets >= 3  # ours at each connect, plus the injected one
+    assert causes(caplog, "disconnect") == ["no line from the tag for 0.2 s"]
+    assert causes(caplog, "reconnect") == ["tag streaming again"]
 
 
-async def test_uwb_reconnects_after_unplug(sim_dwm: SimDwm1001, context_for: ContextFor) -> None:
+async def test_uwb_reconnects_after_unplug(
+    sim_dwm: SimDwm1001, context_for: ContextFor, caplog: pytest.LogCaptureFixture
+) -> None:
+    caplog.set_level(logging.INFO)
     reader = uwb_reader(sim_dwm)
     async with running(reader, context_for) as board:
         await board.next(UWB_FIX, timeout=5.0)
+        assert events(caplog, "reconnect") == []  # the first connection is no reconnect
         with board.subscribe(HEALTH) as health:
             sim_dwm.unplug()
             degraded = await health.get()
@@ -106,6 +117,10 @@ async def test_uwb_reconnects_after_unplug(sim_dwm: SimDwm1001, context_for: Con
             sim_dwm.replug()
             await until(lambda: reader.counters.connects == 2)
         await board.next(UWB_FIX, timeout=5.0)
+    # Every failed retry while unplugged is one outage: logged when it began and when it ended.
+    [lost] = events(caplog, "disconnect")
+    assert lost.subject == sim_dwm.port and lost.cause
+    assert causes(caplog, "reconnect") == ["tag streaming again"]
 
 
 @pytest.fixture
@@ -131,8 +146,12 @@ async def test_motor_commands_reach_controller_and_odometry_comes_back(
 
 
 async def test_stale_command_becomes_stop(
-    sim_motor: SimMotorController, motor_driver: MotorDriver, context_for: ContextFor
+    sim_motor: SimMotorController,
+    motor_driver: MotorDriver,
+    context_for: ContextFor,
+    caplog: pytest.LogCaptureFixture,
 ) -> None:
+    caplog.set_level(logging.INFO)
     async with running(motor_driver, context_for) as board:
         await board.next(ODOMETRY, timeout=5.0)
         board.publish(MOTOR_COMMAND, MotorCommand(left_mm_s=200, right_mm_s=200))
@@ -141,21 +160,43 @@ async def test_stale_command_becomes_stop(
         # controller fed (no watchdog trip) and counts the stops.
         await until(lambda: sim_motor.setpoint == (0, 0) and motor_driver.counters.stale_stops)
         assert sim_motor.watchdog_trips == 0
+        await until(lambda: motor_driver.counters.stale_stops >= 3)
+        assert causes(caplog, "safety_stop") == ["no motor command for 0.25 s: motors stopped"]
+        board.publish(MOTOR_COMMAND, MotorCommand(left_mm_s=100, right_mm_s=100))
+        await until(lambda: sim_motor.setpoint == (100, 100))
+        board.publish(MOTOR_COMMAND, MotorCommand(left_mm_s=0, right_mm_s=0))
+        stale = motor_driver.counters.stale_stops
+        await until(lambda: motor_driver.counters.stale_stops >= stale + 3)
+    # A stop that is not renewed leaves the robot standing: no second safety stop.
+    assert len(events(caplog, "safety_stop")) == 1
+    assert causes(caplog, "safety_clear") == ["motor commands resumed"]
 
 
 async def test_motor_survives_garbage_reset_and_unplug(
-    sim_motor: SimMotorController, motor_driver: MotorDriver, context_for: ContextFor
+    sim_motor: SimMotorController,
+    motor_driver: MotorDriver,
+    context_for: ContextFor,
+    caplog: pytest.LogCaptureFixture,
 ) -> None:
+    caplog.set_level(logging.INFO)
     async with running(motor_driver, context_for) as board:
         await board.next(ODOMETRY, timeout=5.0)
         sim_motor.inject(b"T,1,2,3*00\n\xff\xfe\x00\n")
         await until(lambda: motor_driver.counters.garbage >= 2)
         sim_motor.reset()
         await until(lambda: motor_driver.counters.controller_boots >= 1)
+        telemetry = motor_driver.counters.telemetry
+        await until(lambda: motor_driver.counters.telemetry > telemetry + 3)
+        [reset] = events(caplog, "fault")
+        assert reset.subject == sim_motor.port and "reset while running" in reset.cause
         sim_motor.unplug()
-        await until(lambda: motor_driver.counters.failures >= 1)
+        await until(lambda: motor_driver.counters.failures >= 2)  # retries back off
         sim_motor.replug()
         telemetry = motor_driver.counters.telemetry
         await until(lambda: motor_driver.counters.telemetry > telemetry + 3)
+        [lost] = events(caplog, "disconnect")
+        assert lost.subject == sim_motor.port and lost.cause
+        # Back after the reset, then after the unplug: once each.
+        assert causes(caplog, "reconnect") == ["telemetry resumed", "telemetry resumed"]
         board.publish(MOTOR_COMMAND, MotorCommand(left_mm_s=50, right_mm_s=60))
         await until(lambda: sim_motor.setpoint == (50, 60))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
 import pytest
@@ -19,6 +20,7 @@ from coffeebot.messages import (
 )
 from coffeebot.modules.orders import OrderError, OrdersModule, OrdersUnavailable
 from coffeebot.store import OrderStore
+from logged import events
 
 from .conftest import new_order
 
@@ -77,6 +79,32 @@ async def test_reports_out_of_sequence_or_for_other_orders_are_ignored(
     assert (failed.status, failed.detail) == (OrderStatus.FAILED, "blocked hallway")
 
 
+async def test_every_transition_is_logged_once_with_its_cause(
+    board: Board,
+    orders: OrdersModule,
+    updates: Subscription[OrderUpdate],
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    caplog.set_level(logging.INFO)
+    first = await orders.place(new_order(name="A"), client="10.0.0.7")
+    second = await orders.place(new_order(name="B"), client="10.0.0.8")
+    await orders.cancel(second.id)
+    report(board, first.id, OrderStatus.ON_THE_WAY, "left the tea room")
+    report(board, first.id, OrderStatus.ARRIVED)
+    report(board, first.id, OrderStatus.DELIVERED, "cup taken")
+    await until(updates, first.id, OrderStatus.DELIVERED)
+    logged = [(r.order, r.status, r.cause) for r in events(caplog, "order")]  # type: ignore[attr-defined]
+    assert logged == [
+        (first.id, "queued", "placed by 10.0.0.7"),
+        (first.id, "preparing", "dispatched to the robot"),
+        (second.id, "queued", "placed by 10.0.0.8"),
+        (second.id, "cancelled", "cancelled by the customer"),
+        (first.id, "on_the_way", "left the tea room"),
+        (first.id, "arrived", "reported by navigation"),
+        (first.id, "delivered", "cup taken"),
+    ]
+
+
 async def test_not_running_answers_unavailable(store: OrderStore) -> None:
     with pytest.raises(OrdersUnavailable):
         await OrdersModule(store).place(new_order(), client="c")
@@ -93,8 +121,9 @@ def start(db_path: Path) -> tuple[Board, OrderStore, OrdersModule, Daemon]:
     "reached", [OrderStatus.ON_THE_WAY, OrderStatus.WAITING_FOR_ELEVATOR, OrderStatus.ARRIVED]
 )
 async def test_daemon_killed_on_the_way_fails_the_order_with_reason(
-    db_path: Path, reached: OrderStatus
+    db_path: Path, reached: OrderStatus, caplog: pytest.LogCaptureFixture
 ) -> None:
+    caplog.set_level(logging.INFO)
     board, store, module, daemon = start(db_path)
     await daemon.start()
     order = await module.place(new_order(), client="c")
@@ -113,6 +142,8 @@ async def test_daemon_killed_on_the_way_fails_the_order_with_reason(
         assert failed.status is OrderStatus.FAILED
         assert reached.value in failed.detail
         assert dispatched.msg.order_id == waiting.id
+        [logged] = [r for r in events(caplog, "order") if r.status == "failed"]  # type: ignore[attr-defined]
+        assert logged.cause == failed.detail  # type: ignore[attr-defined]
     finally:
         await daemon.shutdown()
         store.close()

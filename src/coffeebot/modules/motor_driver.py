@@ -4,6 +4,10 @@ The current command is re-sent every ``keepalive_s`` to feed the controller's 20
 watchdog; a command older than ``command_timeout_s`` is replaced by a stop, so a silent
 motion module stops the robot here as well as at the controller. On shutdown it sends a stop
 before the daemon cancels anything.
+
+Logged once each, with the cause: a lost port (``disconnect``) or a controller reset while
+running (``fault``) and the telemetry coming back (``reconnect``); a moving command going
+stale (``safety_stop``) and commands resuming (``safety_clear``).
 """
 
 from __future__ import annotations
@@ -17,9 +21,21 @@ from coffeebot.config import MotorConfig
 from coffeebot.hardware.motor import Boot, MotorController, parse
 from coffeebot.hardware.serial_port import SerialPort, open_port
 from coffeebot.hardware.worker import DeviceWorker
-from coffeebot.messages import HEALTH, MOTOR_COMMAND, ODOMETRY, Health, HealthStatus, Odometry
+from coffeebot.logs import Event, Transitions
+from coffeebot.messages import (
+    HEALTH,
+    MOTOR_COMMAND,
+    ODOMETRY,
+    Health,
+    HealthStatus,
+    MotorCommand,
+    Odometry,
+)
 from coffeebot.modules.backoff import Backoff
 from coffeebot.modules.base import Module, ModuleContext
+
+CONNECTED, DISCONNECTED, RESET = "connected", "disconnected", "reset"
+FRESH, STALE = "fresh", "stale"
 
 
 @dataclass
@@ -65,6 +81,8 @@ class MotorDriver(Module):
     async def run(self, ctx: ModuleContext) -> None:
         reader, writer = DeviceWorker("motor-rx"), DeviceWorker("motor-tx")
         backoff = Backoff(*self.backoff_s)
+        link = Transitions(ctx.log, initial={self.motor.port: CONNECTED})
+        commands = Transitions(ctx.log, initial={MOTOR_COMMAND.name: FRESH})
         try:
             while True:
                 try:
@@ -72,14 +90,14 @@ class MotorDriver(Module):
                         self.opener, self.motor.port, self.motor.baudrate, self.read_timeout_s
                     )
                 except OSError as exc:
-                    await self._failed(ctx, exc, backoff)
+                    await self._failed(ctx, exc, backoff, link)
                     continue
                 ctrl = MotorController(port)
                 self._controller, self._writer = ctrl, writer
                 try:
-                    await self._connected(ctx, reader, writer, ctrl, backoff)
+                    await self._connected(ctx, reader, writer, ctrl, backoff, link, commands)
                 except OSError as exc:
-                    await self._failed(ctx, exc, backoff)
+                    await self._failed(ctx, exc, backoff, link)
                 finally:
                     self._controller = None
                     await reader.call(port.close)
@@ -94,11 +112,13 @@ class MotorDriver(Module):
         writer: DeviceWorker,
         ctrl: MotorController,
         backoff: Backoff,
+        link: Transitions,
+        commands: Transitions,
     ) -> None:
         """Run the telemetry and command loops until either fails; re-raise its error."""
         tasks = [
-            asyncio.create_task(self._read_loop(ctx, reader, ctrl, backoff)),
-            asyncio.create_task(self._write_loop(ctx, writer, ctrl)),
+            asyncio.create_task(self._read_loop(ctx, reader, ctrl, backoff, link)),
+            asyncio.create_task(self._write_loop(ctx, writer, ctrl, commands)),
         ]
         try:
             done, _ = await asyncio.wait(tasks, return_when=asyncio.FIRST_EXCEPTION)
@@ -112,7 +132,12 @@ class MotorDriver(Module):
             task.result()
 
     async def _read_loop(
-        self, ctx: ModuleContext, reader: DeviceWorker, ctrl: MotorController, backoff: Backoff
+        self,
+        ctx: ModuleContext,
+        reader: DeviceWorker,
+        ctrl: MotorController,
+        backoff: Backoff,
+        link: Transitions,
     ) -> None:
         healthy = False
         while True:
@@ -130,15 +155,27 @@ class MotorDriver(Module):
                 if not healthy:
                     healthy = True
                     backoff.reset()
+                    link.update(self.motor.port, CONNECTED, Event.RECONNECT, "telemetry resumed")
                     self._health(ctx, HealthStatus.RUNNING, f"telemetry on {self.motor.port}")
             elif isinstance(event, Boot):
                 # Counters restarted at zero: consumers must not difference across this.
                 self.counters.controller_boots += 1
+                if healthy:  # a boot line right after opening the port is the normal start
+                    link.update(
+                        self.motor.port,
+                        RESET,
+                        Event.FAULT,
+                        f"motor controller reset while running (firmware {event.firmware})",
+                    )
                 self._health(ctx, HealthStatus.DEGRADED, f"controller booted ({event.firmware})")
                 healthy = False
 
     async def _write_loop(
-        self, ctx: ModuleContext, writer: DeviceWorker, ctrl: MotorController
+        self,
+        ctx: ModuleContext,
+        writer: DeviceWorker,
+        ctrl: MotorController,
+        commands: Transitions,
     ) -> None:
         while True:
             with contextlib.suppress(TimeoutError):
@@ -147,11 +184,22 @@ class MotorDriver(Module):
             age = ctx.board.age(MOTOR_COMMAND)
             fresh = latest is not None and age is not None and age <= self.command_timeout_s
             if fresh and latest is not None and not self._stopping:
+                commands.update(
+                    MOTOR_COMMAND.name, FRESH, Event.SAFETY_CLEAR, "motor commands resumed"
+                )
                 await writer.call(ctrl.set_speeds, latest.msg.left_mm_s, latest.msg.right_mm_s)
                 self.counters.commands += 1
             else:
                 if latest is not None and not self._stopping:
                     self.counters.stale_stops += 1
+                if latest is not None and not self._stopping and _moving(latest.msg):
+                    # A stop that was not renewed is an idle robot, not a safety stop.
+                    commands.update(
+                        MOTOR_COMMAND.name,
+                        STALE,
+                        Event.SAFETY_STOP,
+                        f"no motor command for {self.command_timeout_s:g} s: motors stopped",
+                    )
                 await writer.call(ctrl.stop)
 
     async def shutdown(self) -> None:
@@ -164,10 +212,13 @@ class MotorDriver(Module):
         with contextlib.suppress(OSError):
             await writer.call(ctrl.stop)
 
-    async def _failed(self, ctx: ModuleContext, exc: OSError, backoff: Backoff) -> None:
+    async def _failed(
+        self, ctx: ModuleContext, exc: OSError, backoff: Backoff, link: Transitions
+    ) -> None:
         self.counters.failures += 1
         delay = backoff.next_delay()
-        ctx.log.warning("motor controller on %s: %s; retry in %.2f s", self.motor.port, exc, delay)
+        link.update(self.motor.port, DISCONNECTED, Event.DISCONNECT, str(exc))
+        ctx.log.debug("motor controller on %s: %s; retry in %.2f s", self.motor.port, exc, delay)
         self._health(ctx, HealthStatus.DEGRADED, f"{exc}; retry in {delay:.2f} s")
         await ctx.clock.sleep(delay)
 
@@ -182,3 +233,7 @@ class MotorDriver(Module):
                 detail=detail,
             ),
         )
+
+
+def _moving(command: MotorCommand) -> bool:
+    return command.left_mm_s != 0 or command.right_mm_s != 0

@@ -11,6 +11,9 @@ At the first start after a daemon restart, orders that were in flight cannot sim
 the process that knew where the robot and the cup were is gone. An order still being prepared
 (the robot had not left the tea room) goes back to the head of the queue; one that had left is
 marked failed with the reason, so staff can check on it. Nothing is silently dropped.
+
+Every stored change is logged once, where it is announced, as ``event=order`` with its cause
+(who placed or cancelled it, navigation's detail, the restart).
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ import asyncio
 import logging
 
 from coffeebot.board import Envelope
+from coffeebot.logs import Event, log_event
 from coffeebot.messages import (
     DELIVERY_STATUS,
     ORDER_DISPATCH,
@@ -86,17 +90,25 @@ class OrdersModule(Module):
             raise OrdersUnavailable("the order queue is not running; try again shortly")
         return self._board
 
-    def _announce(self, order: Order) -> None:
+    def _announce(self, order: Order, cause: str) -> None:
+        """Publish a stored change and log it: the one place every transition passes."""
         self._require_board().publish(
             ORDER_UPDATE, OrderUpdate(order_id=order.id, status=order.status, detail=order.detail)
+        )
+        log_event(
+            log,
+            Event.ORDER,
+            cause,
+            order=order.id,
+            room=order.room,
+            status=order.status.value,
         )
 
     async def place(self, new: NewOrder, client: str) -> Order:
         """Queue a validated order; it is dispatched at once if the robot is idle."""
         self._require_board()
         order = await self.store.add(new, client)
-        log.info("order queued", extra={"order": order.id, "room": order.room})
-        self._announce(order)
+        self._announce(order, f"placed by {client}")
         await self._dispatch_next()
         return await self.get(order.id)
 
@@ -115,7 +127,7 @@ class OrdersModule(Module):
         if cancelled is None:
             order = await self.get(order_id)
             raise OrderError(f"order {order_id!r} is {order.status.value}, not queued")
-        self._announce(cancelled)
+        self._announce(cancelled, detail)
         return cancelled
 
     async def _recover(self) -> None:
@@ -131,11 +143,7 @@ class OrdersModule(Module):
                 )
             updated = await self.store.transition(order.id, status, detail, (order.status,))
             if updated is not None:
-                log.warning(
-                    "order recovered after restart",
-                    extra={"order": order.id, "status": status.value},
-                )
-                self._announce(updated)
+                self._announce(updated, detail)
 
     async def _dispatch_next(self) -> None:
         """Hand the oldest queued order to navigation unless one is already out."""
@@ -154,14 +162,13 @@ class OrdersModule(Module):
                 if order is None:  # cancelled between the read and the update
                     continue
                 self._current = order.id
-                self._announce(order)
+                self._announce(order, order.detail)
                 self._require_board().publish(
                     ORDER_DISPATCH,
                     OrderDispatch(
                         order_id=order.id, room=order.room, drink=order.drink, name=order.name
                     ),
                 )
-                log.info("order dispatched", extra={"order": order.id})
 
     async def _apply(self, envelope: Envelope[DeliveryUpdate]) -> None:
         update = envelope.msg
@@ -179,7 +186,7 @@ class OrdersModule(Module):
                 extra={"order": update.order_id, "status": update.status.value},
             )
             return
-        self._announce(order)
+        self._announce(order, update.detail or "reported by navigation")
         if order.status.final:
             self._current = None
             await self._dispatch_next()

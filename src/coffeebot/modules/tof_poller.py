@@ -2,7 +2,9 @@
 
 Each sensor is independent: an ``OSError`` from one (a NACK, a bus timeout, a wrong model id)
 marks that sensor unhealthy in the scan and on the health topic and schedules its
-re-initialisation with backoff, while the others keep being read in the same cycle.
+re-initialisation with backoff, while the others keep being read in the same cycle. A sensor
+going unhealthy is logged once as ``event=fault`` with the error, and once as
+``event=recovered`` when it is re-initialised, however many retries that took.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from coffeebot.hardware.i2c import I2CBus
 from coffeebot.hardware.tca9548a import TCA9548A
 from coffeebot.hardware.vl53l1x import VL53L1X, DistanceMode
 from coffeebot.hardware.worker import DeviceWorker
+from coffeebot.logs import Event, Transitions
 from coffeebot.messages import (
     HEALTH,
     RANGE_SCAN,
@@ -29,6 +32,7 @@ from coffeebot.modules.backoff import Backoff
 from coffeebot.modules.base import Module, ModuleContext
 
 DISTANCE_MODES = {"short": DistanceMode.SHORT, "long": DistanceMode.LONG}
+HEALTHY, FAILED = "healthy", "failed"
 
 
 @dataclass
@@ -75,6 +79,7 @@ class TofPoller(Module):
         # The sensors range at the scan rate, so each cycle reads a fresh sample.
         self.sample_period_ms = max(tof.timing_budget_ms, round(self.period_s * 1000))
         self.scans = 0
+        self._faults: Transitions | None = None
 
     async def run(self, ctx: ModuleContext) -> None:
         bus = self.open_bus()
@@ -93,6 +98,8 @@ class TofPoller(Module):
             )
             for cfg in sorted(self.tof.sensors, key=lambda s: s.id)
         ]
+        # Sensors start as healthy: coming up at start-up is no recovery, failing is a fault.
+        self._faults = Transitions(ctx.log, initial={slot.component: HEALTHY for slot in slots})
         try:
             while True:
                 await self._cycle(ctx, worker, mux, slots)
@@ -188,6 +195,7 @@ class TofPoller(Module):
             return
         slot.healthy = True
         slot.backoff.reset()
+        self._transition(slot, HEALTHY, Event.RECOVERED, "re-initialised")
         ctx.board.publish(
             HEALTH,
             Health(
@@ -205,7 +213,8 @@ class TofPoller(Module):
         slot.error = str(exc)
         delay = slot.backoff.next_delay()
         slot.retry_at = ctx.clock.now() + delay
-        ctx.log.warning("%s failed, retry in %.2f s: %s", slot.component, delay, exc)
+        self._transition(slot, FAILED, Event.FAULT, slot.error)
+        ctx.log.debug("%s failed, retry in %.2f s: %s", slot.component, delay, exc)
         ctx.board.publish(
             HEALTH,
             Health(
@@ -215,6 +224,12 @@ class TofPoller(Module):
                 restarts=slot.failures,
                 detail=slot.error,
             ),
+        )
+
+    def _transition(self, slot: SensorSlot, state: str, event: Event, cause: str) -> None:
+        assert self._faults is not None, "only called from run()"
+        self._faults.update(
+            slot.component, state, event, cause, channel=slot.cfg.channel, failures=slot.failures
         )
 
 

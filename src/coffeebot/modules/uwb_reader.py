@@ -2,7 +2,9 @@
 
 Only a ``POS`` the tag itself reported becomes a fix; lines without one, garbage and partial
 lines are counted and skipped. A silent stream (tag reset, stationary mode) gets a fresh
-handshake; a port that fails (USB unplug) is reopened with backoff.
+handshake; a port that fails (USB unplug) is reopened with backoff. Each outage is logged
+once as ``event=disconnect`` with its cause and once as ``event=reconnect`` when the tag
+streams again, however many retries it took.
 """
 
 from __future__ import annotations
@@ -14,9 +16,12 @@ from coffeebot.config import SerialPortConfig
 from coffeebot.hardware.dwm1001 import Dwm1001, parse_lec
 from coffeebot.hardware.serial_port import SerialPort, open_port
 from coffeebot.hardware.worker import DeviceWorker
+from coffeebot.logs import Event, Transitions
 from coffeebot.messages import HEALTH, UWB_FIX, Health, HealthStatus
 from coffeebot.modules.backoff import Backoff
 from coffeebot.modules.base import Module, ModuleContext
+
+CONNECTED, DISCONNECTED = "connected", "disconnected"
 
 
 @dataclass
@@ -57,6 +62,7 @@ class UwbReader(Module):
     async def run(self, ctx: ModuleContext) -> None:
         worker = DeviceWorker("uwb")
         backoff = Backoff(*self.backoff_s)
+        link = Transitions(ctx.log, initial={self.uwb.port: CONNECTED})
         try:
             while True:
                 try:
@@ -64,17 +70,24 @@ class UwbReader(Module):
                         self.opener, self.uwb.port, self.uwb.baudrate, self.read_timeout_s
                     )
                 except OSError as exc:
-                    await self._failed(ctx, exc, backoff)
+                    await self._failed(ctx, exc, backoff, link)
                     continue
                 tag = Dwm1001(port)
                 try:
                     await worker.call(tag.start)
                     self.counters.connects += 1
                     backoff.reset()
+                    link.update(self.uwb.port, CONNECTED, Event.RECONNECT, "tag streaming again")
                     self._health(ctx, HealthStatus.RUNNING, f"streaming lec on {self.uwb.port}")
                     await self._stream(ctx, worker, tag)
+                    link.update(
+                        self.uwb.port,
+                        DISCONNECTED,
+                        Event.DISCONNECT,
+                        f"no line from the tag for {self.silence_s:g} s",
+                    )
                 except OSError as exc:
-                    await self._failed(ctx, exc, backoff)
+                    await self._failed(ctx, exc, backoff, link)
                 finally:
                     self.counters.overflows += tag.lines.overflows
                     await worker.call(port.close)
@@ -105,10 +118,13 @@ class UwbReader(Module):
                 self.counters.fixes += 1
                 ctx.board.publish(UWB_FIX, report.fix)
 
-    async def _failed(self, ctx: ModuleContext, exc: OSError, backoff: Backoff) -> None:
+    async def _failed(
+        self, ctx: ModuleContext, exc: OSError, backoff: Backoff, link: Transitions
+    ) -> None:
         self.counters.failures += 1
         delay = backoff.next_delay()
-        ctx.log.warning("UWB tag on %s: %s; retry in %.2f s", self.uwb.port, exc, delay)
+        link.update(self.uwb.port, DISCONNECTED, Event.DISCONNECT, str(exc))
+        ctx.log.debug("UWB tag on %s: %s; retry in %.2f s", self.uwb.port, exc, delay)
         self._health(ctx, HealthStatus.DEGRADED, f"{exc}; retry in {delay:.2f} s")
         await ctx.clock.sleep(delay)
 

@@ -8,13 +8,18 @@ speeds up everything together.
 
 Reachable from outside as ``Runtime.sim``: ``world`` for ground truth (reports, the live
 map), :meth:`place_robot` for what moves the robot other than its wheels (the elevator).
+The CPU time the world itself costs (stepping, ray casts for the sensors, the UWB and motor
+samples) is counted in :attr:`Simulation.cpu_s`, so that benchmarks can tell the robot's
+share of a simulated run from the simulator's.
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
 import threading
-from collections.abc import Sequence
+import time
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 
 from coffeebot.clock import Clock
@@ -47,12 +52,11 @@ class WorldDrive:
         self.sim = sim
 
     def command(self, left_mm_s: float, right_mm_s: float, now: float) -> None:
-        with self.sim.lock:
-            self.sim.world.command_wheels(left_mm_s, right_mm_s)
+        with self.sim.world_time() as world:
+            world.command_wheels(left_mm_s, right_mm_s)
 
     def sample(self, now: float) -> DriveSample:
-        with self.sim.lock:
-            world = self.sim.world
+        with self.sim.world_time() as world:
             left, right = world.encoder_ticks
             v_left, v_right = world.wheel_speeds_mm_s
             return DriveSample(left, right, v_left, v_right, world.gyro_z_dps())
@@ -93,6 +97,8 @@ class Simulation:
         self.lock = threading.RLock()
         self.faults = [fault.model_copy() for fault in faults]  # each run starts afresh
         self.truth = TruthLog()
+        self.cpu_s = 0.0
+        """CPU seconds spent in the world, on whichever thread asked (see :meth:`world_time`)."""
         self._origin: float | None = None  # the world's t = 0 on the clock: its first step
         by_id = sorted(config.tof.sensors, key=lambda s: s.id)
         self._index = {s.channel: i for i, s in enumerate(by_id)}
@@ -132,9 +138,9 @@ class Simulation:
         now = self.clock.now()
         if self._origin is None:
             self._origin = now  # time spent in the self-check is not part of the run
-        with self.lock:
-            self.world.step(now - self._origin - self.world.t_s)
-            gap = self.world.clearance_mm()
+        with self.world_time() as world:
+            world.step(now - self._origin - world.t_s)
+            gap = world.clearance_mm()
             self.truth.min_clearance_mm = min(self.truth.min_clearance_mm, gap)
         for fault in self.faults:
             record = fault.update(self)
@@ -146,13 +152,24 @@ class Simulation:
         with self.lock:
             self.world.place_robot(pose, floor)
 
-    def _tof_reading(self, channel: int) -> ToFReading:
+    @contextlib.contextmanager
+    def world_time(self) -> Iterator[World]:
+        """The world under the lock, the calling thread's CPU time in it added to ``cpu_s``
+        (``thread_time`` counts no time spent waiting for the lock)."""
+        start = time.thread_time()
         with self.lock:
-            return self.world.tof_reading(self._index[channel])
+            try:
+                yield self.world
+            finally:
+                self.cpu_s += time.thread_time() - start
+
+    def _tof_reading(self, channel: int) -> ToFReading:
+        with self.world_time() as world:
+            return world.tof_reading(self._index[channel])
 
     def _uwb_fix(self) -> UwbFix | None:
-        with self.lock:
-            return self.world.uwb_fix()
+        with self.world_time() as world:
+            return world.uwb_fix()
 
 
 class WorldModule(Module):

@@ -36,6 +36,19 @@ def hallway_pose(floor: Floor, s_mm: float, d_mm: float) -> Pose:
     return Pose(x, y, floor.hallway.heading_deg)
 
 
+def lane_wheel_speeds(world: World, speed_mm_s: float, lane_mm: float) -> tuple[float, float]:
+    """Wheel speeds that hold the robot ``lane_mm`` off the hallway axis, travelling towards
+    the hallway's end: a ground-truth line follower standing in for navigation and motion."""
+    floor, pose = world.floor, world.pose
+    _, d = floor.to_hallway(pose.x_mm, pose.y_mm)
+    heading_error = math.radians(
+        math.remainder(pose.heading_deg - floor.hallway.heading_deg, 360.0)
+    )
+    wanted = -_LANE_GAIN * (d - lane_mm)
+    turn = _HEADING_GAIN * (wanted - heading_error) * world.robot.wheel_base_mm / 2
+    return speed_mm_s - turn, speed_mm_s + turn
+
+
 def hallway_pass(
     world: World,
     *,
@@ -55,7 +68,6 @@ def hallway_pass(
     if max_time_s is None:
         travel = abs(to_s_mm - start_s) / speed_mm_s
         max_time_s = 2 * travel + speed_mm_s / world.robot.max_accel_mm_s2 + 1.0
-    half_base = world.robot.wheel_base_mm / 2
     dt = 1.0 / rate_hz
     collisions = len(world.collisions)
     rows: list[TraceRow] = []
@@ -65,14 +77,10 @@ def hallway_pass(
         rows.append(TraceRow(world.t_s, pose, s, d, tuple(world.scan())))
         if s >= to_s_mm or len(world.collisions) > collisions:
             break
-        turn = 0.0
         if steer:
-            heading_error = math.radians(
-                math.remainder(pose.heading_deg - floor.hallway.heading_deg, 360.0)
-            )
-            wanted = -_LANE_GAIN * (d - lane)
-            turn = _HEADING_GAIN * (wanted - heading_error) * half_base
-        world.command_wheels(speed_mm_s - turn, speed_mm_s + turn)
+            world.command_wheels(*lane_wheel_speeds(world, speed_mm_s, lane))
+        else:
+            world.command_wheels(speed_mm_s, speed_mm_s)
         world.step(dt)
     world.command_wheels(0.0, 0.0)
     return rows
