@@ -28,7 +28,8 @@ from coffeebot.modules.state import StateModule
 PLAN = load_floorplan(BOARD_FILE.parents[1] / "floorplans" / "cs-building.toml")
 
 
-async def test_collision_verdict_in_the_same_loop_turn_as_the_scan() -> None:
+async def test_collision_verdict_in_the_same_loop_turn_as_the_scan(caplog) -> None:
+    caplog.set_level("INFO")
     board = Board(ALL_TOPICS)
     daemon = Daemon(board, [CollisionModule(robot())])
     await daemon.start()
@@ -44,6 +45,10 @@ async def test_collision_verdict_in_the_same_loop_turn_as_the_scan() -> None:
         (2, 2, SafetyState.STOP),
         (3, 3, SafetyState.GO),
     ]
+    # Each change is logged once with its cause; the initial "stop" is no event.
+    events = [(r.event, r.cause) for r in caplog.records if hasattr(r, "event")]
+    assert [e for e, _ in events] == ["safety_clear", "safety_stop", "safety_clear"]
+    assert "obstacle at 150 mm" in events[1][1]
 
 
 async def test_state_module_fuses_odometry_and_uwb() -> None:

@@ -5,7 +5,8 @@ from __future__ import annotations
 from typing import ClassVar
 
 from coffeebot.config import RobotConfig
-from coffeebot.messages import COLLISION, ODOMETRY, RANGE_SCAN
+from coffeebot.logs import Event, Transitions
+from coffeebot.messages import COLLISION, ODOMETRY, RANGE_SCAN, SafetyState
 from coffeebot.modules.base import Module, ModuleContext
 from coffeebot.perception.collision import CollisionMonitor
 
@@ -45,8 +46,19 @@ class CollisionModule(Module):
     async def run(self, ctx: ModuleContext) -> None:
         # A restart forgets everything: back to "stop" until every face is clear again.
         self.monitor = self._new_monitor()
+        # Starting in "stop" is the rule, not an event; every change after it is logged once.
+        safety = Transitions(ctx.log, initial={"collision": True})
         with ctx.board.subscribe(RANGE_SCAN) as scans:
             async for envelope in scans:
                 # No await between reading the scan and publishing the verdict.
                 status = self.monitor.update(envelope.msg, self._speed(ctx), envelope.seq)
                 ctx.board.publish(COLLISION, status)
+                stopped = status.state is SafetyState.STOP
+                safety.update(
+                    "collision",
+                    stopped,
+                    Event.SAFETY_STOP if stopped else Event.SAFETY_CLEAR,
+                    status.reason,
+                    sensor=status.sensor,
+                    distance_mm=status.distance_mm,
+                )
