@@ -26,15 +26,15 @@ from coffeebot.messages import (
     HEALTH,
     MOTOR_COMMAND,
     ODOMETRY,
-    Health,
     HealthStatus,
     MotorCommand,
     Odometry,
 )
 from coffeebot.modules.backoff import Backoff
-from coffeebot.modules.base import Module, ModuleContext
+from coffeebot.modules.base import ModuleContext
+from coffeebot.modules.serial_device import CONNECTED, SerialDeviceModule
 
-CONNECTED, DISCONNECTED, RESET = "connected", "disconnected", "reset"
+RESET = "reset"
 FRESH, STALE = "fresh", "stale"
 
 
@@ -48,8 +48,9 @@ class MotorCounters:
     failures: int = 0
 
 
-class MotorDriver(Module):
+class MotorDriver(SerialDeviceModule):
     name = "motor"
+    device = "motor controller"
     inputs = (MOTOR_COMMAND,)
     outputs = (ODOMETRY, HEALTH)
     shutdown_order = 0  # first: the motors stop before anything else goes down
@@ -68,6 +69,7 @@ class MotorDriver(Module):
         if keepalive_s * 2 > motor.watchdog_ms / 1000.0:
             raise ValueError("keepalive must be at most half the controller watchdog")
         self.motor = motor
+        self.port = motor.port
         self.keepalive_s = keepalive_s
         self.command_timeout_s = command_timeout_s
         self.read_timeout_s = read_timeout_s
@@ -211,28 +213,6 @@ class MotorDriver(Module):
             return
         with contextlib.suppress(OSError):
             await writer.call(ctrl.stop)
-
-    async def _failed(
-        self, ctx: ModuleContext, exc: OSError, backoff: Backoff, link: Transitions
-    ) -> None:
-        self.counters.failures += 1
-        delay = backoff.next_delay()
-        link.update(self.motor.port, DISCONNECTED, Event.DISCONNECT, str(exc))
-        ctx.log.debug("motor controller on %s: %s; retry in %.2f s", self.motor.port, exc, delay)
-        self._health(ctx, HealthStatus.DEGRADED, f"{exc}; retry in {delay:.2f} s")
-        await ctx.clock.sleep(delay)
-
-    def _health(self, ctx: ModuleContext, status: HealthStatus, detail: str) -> None:
-        ctx.board.publish(
-            HEALTH,
-            Health(
-                module=self.name,
-                component=self.motor.port,
-                status=status,
-                restarts=self.counters.failures,
-                detail=detail,
-            ),
-        )
 
 
 def _moving(command: MotorCommand) -> bool:

@@ -17,11 +17,10 @@ from coffeebot.hardware.dwm1001 import Dwm1001, parse_lec
 from coffeebot.hardware.serial_port import SerialPort, open_port
 from coffeebot.hardware.worker import DeviceWorker
 from coffeebot.logs import Event, Transitions
-from coffeebot.messages import HEALTH, UWB_FIX, Health, HealthStatus
+from coffeebot.messages import HEALTH, UWB_FIX, HealthStatus
 from coffeebot.modules.backoff import Backoff
-from coffeebot.modules.base import Module, ModuleContext
-
-CONNECTED, DISCONNECTED = "connected", "disconnected"
+from coffeebot.modules.base import ModuleContext
+from coffeebot.modules.serial_device import CONNECTED, DISCONNECTED, SerialDeviceModule
 
 
 @dataclass
@@ -39,8 +38,9 @@ class UwbCounters:
         return " ".join(f"{k}={v}" for k, v in asdict(self).items())
 
 
-class UwbReader(Module):
+class UwbReader(SerialDeviceModule):
     name = "uwb"
+    device = "UWB tag"
     outputs = (UWB_FIX, HEALTH)
 
     def __init__(
@@ -53,6 +53,7 @@ class UwbReader(Module):
         opener: Callable[[str, int, float], SerialPort] = open_port,
     ) -> None:
         self.uwb = uwb
+        self.port = uwb.port
         self.read_timeout_s = read_timeout_s
         self.silence_s = silence_s
         self.backoff_s = backoff_s
@@ -118,24 +119,5 @@ class UwbReader(Module):
                 self.counters.fixes += 1
                 ctx.board.publish(UWB_FIX, report.fix)
 
-    async def _failed(
-        self, ctx: ModuleContext, exc: OSError, backoff: Backoff, link: Transitions
-    ) -> None:
-        self.counters.failures += 1
-        delay = backoff.next_delay()
-        link.update(self.uwb.port, DISCONNECTED, Event.DISCONNECT, str(exc))
-        ctx.log.debug("UWB tag on %s: %s; retry in %.2f s", self.uwb.port, exc, delay)
-        self._health(ctx, HealthStatus.DEGRADED, f"{exc}; retry in {delay:.2f} s")
-        await ctx.clock.sleep(delay)
-
-    def _health(self, ctx: ModuleContext, status: HealthStatus, detail: str) -> None:
-        ctx.board.publish(
-            HEALTH,
-            Health(
-                module=self.name,
-                component=self.uwb.port,
-                status=status,
-                restarts=self.counters.failures,
-                detail=f"{detail} ({self.counters.summary()})",
-            ),
-        )
+    def health_detail(self, detail: str) -> str:
+        return f"{detail} ({self.counters.summary()})"
