@@ -196,16 +196,7 @@ class TofPoller(Module):
         slot.healthy = True
         slot.backoff.reset()
         self._transition(slot, HEALTHY, Event.RECOVERED, "re-initialised")
-        ctx.board.publish(
-            HEALTH,
-            Health(
-                module=self.name,
-                component=slot.component,
-                status=HealthStatus.RUNNING,
-                restarts=slot.failures,
-                detail=f"mux channel {slot.cfg.channel}",
-            ),
-        )
+        self._report(ctx, slot, HealthStatus.RUNNING, f"mux channel {slot.cfg.channel}")
 
     def _mark_failed(self, ctx: ModuleContext, slot: SensorSlot, exc: OSError) -> None:
         slot.healthy = False
@@ -215,14 +206,19 @@ class TofPoller(Module):
         slot.retry_at = ctx.clock.now() + delay
         self._transition(slot, FAILED, Event.FAULT, slot.error)
         ctx.log.debug("%s failed, retry in %.2f s: %s", slot.component, delay, exc)
+        self._report(ctx, slot, HealthStatus.DEGRADED, slot.error)
+
+    def _report(
+        self, ctx: ModuleContext, slot: SensorSlot, status: HealthStatus, detail: str
+    ) -> None:
         ctx.board.publish(
             HEALTH,
             Health(
                 module=self.name,
                 component=slot.component,
-                status=HealthStatus.DEGRADED,
+                status=status,
                 restarts=slot.failures,
-                detail=slot.error,
+                detail=detail,
             ),
         )
 
