@@ -241,27 +241,7 @@ def bench_door(plan: FloorPlan, config: RobotConfig, spec: RobotSpec, speeds: li
 
 def _clearance(world: World, obstacle: ObstacleSpec) -> float:
     """Gap between the body's rectangle and the obstacle's parts within the body's height."""
-    surfaces = obstacle_surfaces(obstacle, world.t_s)
-    spec = world.robot
-    lo, hi = spec.ground_clearance_mm, spec.height_mm
-    s = world.body.state
-    c, sn = math.cos(s.theta), math.sin(s.theta)
-    points = []
-    for x0, y0, x1, y1, zb, zt in surfaces.segments:
-        if zt >= lo and zb <= hi:
-            n = max(2, int(math.dist((x0, y0), (x1, y1)) / 10))
-            t = np.linspace(0, 1, n)[:, None]
-            points.append(np.array([x0, y0]) * (1 - t) + np.array([x1, y1]) * t)
-    for cx, cy, r, zb, zt in surfaces.cylinders:
-        if zt >= lo and zb <= hi:
-            a = np.linspace(0, math.tau, 64)[:, None]
-            points.append(np.hstack([cx + r * np.cos(a), cy + r * np.sin(a)]))
-    if not points:
-        return math.inf
-    p = np.vstack(points) - (s.x, s.y)
-    local = np.stack([p[:, 0] * c + p[:, 1] * sn, -p[:, 0] * sn + p[:, 1] * c], axis=1)
-    outside = np.maximum(np.abs(local) - (spec.length_mm / 2, spec.width_mm / 2), 0.0)
-    return float(np.hypot(outside[:, 0], outside[:, 1]).min())
+    return world.clearance_mm(obstacle_surfaces(obstacle, world.t_s))
 
 
 def _approach(

@@ -5,26 +5,26 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
-import faulthandler
+import json
 import logging
-import os
 import sys
 from pathlib import Path
 
+from coffeebot import runtime
 from coffeebot.board import Board
-from coffeebot.board.recording import Player, Recorder, RecordingError, recording_info
+from coffeebot.board.recording import Player, RecordingError, recording_info
 from coffeebot.clock import ScaledClock
 from coffeebot.config import ConfigError, RobotConfig, load_robot_config
 from coffeebot.daemon import Daemon
+from coffeebot.floorplan import FloorPlan, load_floorplan
 from coffeebot.floorplan_svg import add_render_arguments, render_command
+from coffeebot.hardware.selfcheck import SelfCheckFailed
 from coffeebot.install import install_service
 from coffeebot.logs import setup_logging
 from coffeebot.messages import ALL_TOPICS
-from coffeebot.modules.orders import OrdersModule
-from coffeebot.modules.web import WebModule
-from coffeebot.store import OrderStore
-from coffeebot.systemd import Notifier, control_loop_check, run_as_service
-from coffeebot.web import WebDeps
+from coffeebot.modules.base import Module
+from coffeebot.sim.scenario import load_scenario
+from coffeebot.sim.simulation import demo_setup
 
 log = logging.getLogger("coffeebot")
 
@@ -55,6 +55,13 @@ def build_parser() -> argparse.ArgumentParser:
     _add_common(run)
     sim = sub.add_parser("sim", help="run the daemon on the simulated robot and world")
     _add_common(sim)
+    sim.add_argument("--scenario", type=Path, help="run this scenario file and report on it")
+    sim.add_argument("--report", type=Path, metavar="OUT.json", help="scenario report file")
+    sim.add_argument("--headless", action="store_true", help="no web UI")
+    sim.add_argument("--duration", type=_positive, metavar="S", help="stop after S sim seconds")
+    sim.add_argument("--speed", type=_positive, default=1.0, help="times real time (default 1)")
+    sim.add_argument("--host", help="web UI address (default: the board file's)")
+    sim.add_argument("--port", type=int, help="web UI port (default: the board file's)")
     check = sub.add_parser("check-hardware", help="probe every device once and print a table")
     _add_common(check)
     check.add_argument("--sim", action="store_true", help="probe the simulated buses instead")
@@ -77,49 +84,50 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _recorder(
-    board: Board, path: Path | None, config: RobotConfig
-) -> contextlib.AbstractAsyncContextManager[object]:
-    """``--record``: started before the modules, closed after their shutdown is on the board."""
-    if path is None:
-        return contextlib.nullcontext()
-    return Recorder(board, path, metadata={"robot": config.name})
+async def _sim(config: RobotConfig, plan: FloorPlan, args: argparse.Namespace) -> None:
+    """The demo: daemon, world and web UI (or headless for ``--duration`` seconds)."""
+    duration = args.duration
+
+    def extra(rt: runtime.Runtime) -> list[Module]:
+        return [] if duration is None else [runtime.StopAfter(rt, duration)]
+
+    setup = demo_setup(plan, args.speed)
+    async with runtime.build_sim(config, plan, setup, extra, web=not args.headless) as rt:
+        await runtime.serve(rt, args.record)
 
 
-async def _run_daemon(config: RobotConfig, record: Path | None) -> None:
-    # systemd's watchdog kills a stalled daemon with SIGABRT: leave its stacks in the journal.
-    faulthandler.enable()
-    board = Board(ALL_TOPICS)
-    store = OrderStore(config.store.path)
-    orders = OrdersModule(store)
-    # Rooms, floor SVGs and the pose source come from the floor plan and the state module.
-    web = WebModule(
-        WebDeps(
-            board=board,
-            bus=board,
-            orders=orders,
-            rooms=[],
-            config=config.web,
-            operator_token=os.environ.get(config.web.operator_token_env),
-            modules=[orders],
-            sensors=config.tof.sensors,
-            geometry=config.geometry,
-            health=lambda: daemon.health(),
+def _sim_command(config: RobotConfig, args: argparse.Namespace) -> int:
+    config = config.model_copy(
+        update={
+            "web": config.web.model_copy(
+                update={"host": args.host or config.web.host, "port": args.port or config.web.port}
+            )
+        }
+    )
+    if args.scenario is None:
+        if args.headless and args.duration is None:
+            print("coffeebot: --headless without --scenario needs --duration", file=sys.stderr)
+            return 2
+        asyncio.run(_sim(config, load_floorplan(args.floorplan), args))
+        return 0
+    scenario, plan = load_scenario(args.scenario)
+    report = asyncio.run(
+        runtime.run_scenario(
+            config,
+            scenario,
+            plan,
+            speed=args.speed,
+            web=not args.headless,
+            record=args.record,
         )
     )
-    daemon = Daemon(board, modules=[orders, web], supervision=config.supervision)
-    daemon.install_signal_handlers()
-    watchdog = config.watchdog
-    try:
-        async with _recorder(board, record, config):
-            await run_as_service(
-                daemon,
-                Notifier.from_env(),
-                control_loop_check(board, watchdog.topics, watchdog.max_age_s),
-                max_loop_lag_s=watchdog.max_loop_lag_s,
-            )
-    finally:
-        store.close()
+    text = json.dumps(report, indent=2)
+    if args.report is None:
+        print(text)
+    else:
+        args.report.write_text(text + "\n")
+        log.info("report written", extra={"path": str(args.report)})
+    return 0
 
 
 async def _replay(config: RobotConfig, args: argparse.Namespace) -> None:
@@ -129,7 +137,7 @@ async def _replay(config: RobotConfig, args: argparse.Namespace) -> None:
     daemon = Daemon(board, modules=[], supervision=config.supervision)
     daemon.install_signal_handlers()
     player = Player(board, args.file, args.topic, on_start=clock.restart)
-    async with _recorder(board, args.record, config):
+    async with runtime.recorder(board, args.record, config):
         playing = asyncio.create_task(player.run())
         playing.add_done_callback(lambda _: daemon.request_stop("replay finished"))
         await daemon.run()
@@ -178,8 +186,15 @@ def main(argv: list[str] | None = None) -> int:
         except (OSError, RecordingError) as exc:
             print(f"coffeebot: {exc}", file=sys.stderr)
             return 1
-    else:
-        asyncio.run(_run_daemon(config, args.record))
+        return 0
+    try:
+        if args.command == "sim":
+            return _sim_command(config, args)
+        robot = runtime.build_robot(config, load_floorplan(args.floorplan))
+        asyncio.run(runtime.serve(robot, args.record))
+    except (ConfigError, SelfCheckFailed, OSError) as exc:
+        print(f"coffeebot: {exc}", file=sys.stderr)
+        return 2 if isinstance(exc, ConfigError) else 1
     return 0
 
 

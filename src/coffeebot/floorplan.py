@@ -132,7 +132,11 @@ class AngleZone(_Model):
 class Anchor(_Model):
     """A UWB anchor at a surveyed position."""
 
-    id: str
+    id: str = Field(
+        pattern=r"^[0-9A-F]{4}$",
+        description="the anchor's UWB short address, 4 upper-case hex digits, as the tag "
+        "reports it (this is how a fix's anchors are matched to a floor)",
+    )
     x_mm: float
     y_mm: float
     z_mm: float = 2400.0

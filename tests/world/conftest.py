@@ -42,9 +42,9 @@ def _tiny_plan_dict(**hallway: Any) -> dict[str, Any]:
                     {"room": "Tea", "kind": "tea_room", "side": "left", "at_mm": 8000},
                 ],
                 "anchors": [
-                    {"id": "A1", "x_mm": 0, "y_mm": 800},
-                    {"id": "A2", "x_mm": 5000, "y_mm": -800},
-                    {"id": "A3", "x_mm": 10000, "y_mm": 800},
+                    {"id": "0A01", "x_mm": 0, "y_mm": 800},
+                    {"id": "0A02", "x_mm": 5000, "y_mm": -800},
+                    {"id": "0A03", "x_mm": 10000, "y_mm": 800},
                 ],
             }
         ],

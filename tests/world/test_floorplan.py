@@ -134,7 +134,7 @@ def test_error_for_unknown_field(plan_dict: Callable[..., dict[str, Any]]) -> No
     raw = plan_dict()
     raw["floors"][0]["anchors"][1]["height"] = 3
     error = _error(raw)
-    assert error.element == "floor 1 / anchor A2"
+    assert error.element == "floor 1 / anchor 0A02"
     assert "height" in error.problem
 
 
@@ -148,9 +148,14 @@ def test_error_for_unknown_field(plan_dict: Callable[..., dict[str, Any]]) -> No
             "overlaps 101",
         ),
         (
-            lambda f: f["anchors"].append({"id": "A1", "x_mm": 0, "y_mm": 0}),
-            "floor 1 / anchor A1",
+            lambda f: f["anchors"].append({"id": "0A01", "x_mm": 0, "y_mm": 0}),
+            "floor 1 / anchor 0A01",
             "duplicate id",
+        ),
+        (
+            lambda f: f["anchors"].append({"id": "A4", "x_mm": 0, "y_mm": 0}),
+            "floor 1 / anchor A4",
+            "should match pattern",
         ),
         (
             lambda f: f.setdefault("angle_zones", []).append(

@@ -4,11 +4,12 @@ ones, and reports one row per part so a wiring fault names its place."""
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import json
 import os
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Awaitable, Callable, Iterator
 from dataclasses import asdict, dataclass
 
 from coffeebot.config import RobotConfig
@@ -21,6 +22,9 @@ from coffeebot.hardware.vl53l1x import MODEL_ID, VL53L1X, DistanceMode
 from coffeebot.messages import ReadingStatus
 
 PORT_TIMEOUT_S = 0.2
+TOF_SAMPLES = 5
+WORKING = frozenset({ReadingStatus.VALID, ReadingStatus.OUT_OF_BOUNDS})
+"""A distance, or nothing in range (an open door, a long hallway): the sensor works."""
 FAULT_ENV = "COFFEEBOT_SIM_FAULT"
 FAULTS = ("mux-nack", "tof<N>-nack", "tof<N>-status", "i2c-timeout", "uwb-unplug", "motor-unplug")
 
@@ -55,10 +59,14 @@ def check_tof(bus: I2CBus, config: RobotConfig) -> list[CheckResult]:
                 config.tof.timing_budget_ms,
             )
             sensor.start_ranging()
-            for _ in range(2):  # the first range after a start is never trusted
+            # The first range after a start is never trusted; after it, one usable sample
+            # among a few is a working sensor (a far target is sometimes a sigma failure).
+            for attempt in range(1 + TOF_SAMPLES):
                 sensor.wait_data_ready()
                 m = sensor.read_measurement()
                 sensor.clear_interrupt()
+                if attempt and m.status in WORKING:
+                    break
             sensor.stop_ranging()
             mux.deselect()
         except OSError as exc:
@@ -66,7 +74,7 @@ def check_tof(bus: I2CBus, config: RobotConfig) -> list[CheckResult]:
                 CheckResult(f"VL53L1X tof{cfg.id}", f"channel {cfg.channel}", False, str(exc))
             )
             continue
-        ok = m.status is ReadingStatus.VALID
+        ok = m.status in WORKING
         detail = (
             f"model 0x{MODEL_ID:04X}, {m.distance_mm} mm ({m.status.value}, raw {m.raw_status})"
         )
@@ -124,6 +132,36 @@ def check_motor(config: RobotConfig, opener: Opener) -> CheckResult:
 
 def run_checks(config: RobotConfig, bus: I2CBus, opener: Opener = open_port) -> list[CheckResult]:
     return [*check_tof(bus, config), check_uwb(config, opener), check_motor(config, opener)]
+
+
+class SelfCheckFailed(Exception):
+    """A part failed the check the daemon runs before the robot may move."""
+
+
+def service_check(
+    config: RobotConfig, open_bus: Callable[[], I2CBus]
+) -> Callable[[], Awaitable[str]]:
+    """The daemon's start-up self-check (``run_as_service(self_check=...)``): every probe once,
+    in a thread; raises naming the failed parts, or the device that cannot be opened."""
+
+    def probe() -> str:
+        try:
+            bus = open_bus()
+        except OSError as exc:
+            raise SelfCheckFailed(f"cannot open the I2C bus: {exc}") from exc
+        try:
+            results = run_checks(config, bus)
+        finally:
+            bus.close()
+        failed = [f"{r.component} ({r.where}): {r.detail}" for r in results if not r.ok]
+        if failed:
+            raise SelfCheckFailed("; ".join(failed))
+        return f"self-check: {len(results)} parts ok"
+
+    async def check() -> str:
+        return await asyncio.to_thread(probe)
+
+    return check
 
 
 @contextlib.contextmanager

@@ -3,7 +3,8 @@
 Modelled: TLV mode after boot (text is answered with ``@\\x01\\x01``), double Enter into the
 shell, echo and ``dwm> `` prompt, the ``lec``/``lep`` toggles, ``reset`` (reboot into TLV
 mode, silent while booting), ``quit``, ``ut``. Streams at ``rate_hz`` from ``truth_fn`` with
-Gaussian noise; ``POS`` is left out when fewer than three anchors are in range.
+Gaussian noise, or from ``fix_fn`` (the simulated world's own UWB model); ``POS`` is left out
+when fewer than three anchors are in range.
 
 Faults: :meth:`inject` (garbage, partial lines), :meth:`reset`, :meth:`unplug` /
 :meth:`replug`, and ``drop_pos`` to stream lines without a position.
@@ -18,10 +19,14 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from coffeebot.hardware.dwm1001 import PROMPT, TLV_UNKNOWN_COMMAND
+from coffeebot.messages import AnchorRange, UwbFix
 from coffeebot.sim.pty import PtyDevice
 
 TruthFn = Callable[[], tuple[float, float, float]]
 """The tag's true position (x, y, z) in mm."""
+
+FixFn = Callable[[], UwbFix | None]
+"""A complete measurement (anchor ranges and position), or None with too few anchors."""
 
 
 @dataclass(frozen=True)
@@ -44,8 +49,9 @@ BANNER = b"\r\nDWM1001 TWR Real Time Location System (simulated)\r\n\r\n"
 class SimDwm1001(PtyDevice):
     def __init__(
         self,
-        truth_fn: TruthFn,
+        truth_fn: TruthFn | None = None,
         *,
+        fix_fn: FixFn | None = None,
         anchors: Sequence[SimAnchor] = DEFAULT_ANCHORS,
         rate_hz: float = 10.0,
         noise_mm: float = 30.0,
@@ -54,8 +60,12 @@ class SimDwm1001(PtyDevice):
         boot_s: float = 0.05,
         seed: int = 0,
         clock: Callable[[], float] = time.monotonic,
+        tick_s: float = 0.005,
     ) -> None:
+        if (truth_fn is None) == (fix_fn is None):
+            raise ValueError("give exactly one of truth_fn and fix_fn")
         self.truth_fn = truth_fn
+        self.fix_fn = fix_fn
         self.anchors = list(anchors)
         self.period_s = 1.0 / rate_hz
         self.noise_mm = noise_mm
@@ -66,7 +76,7 @@ class SimDwm1001(PtyDevice):
         self.resets = 0
         self.commands: list[str] = []  # every shell command received, for tests
         self._rng = random.Random(seed)
-        super().__init__("dwm1001", clock=clock)
+        super().__init__("dwm1001", clock=clock, tick_s=tick_s)
 
     def on_plugged(self) -> None:
         with self._lock:
@@ -148,23 +158,46 @@ class SimDwm1001(PtyDevice):
 
     def report(self) -> str:
         """One stream line for the current truth."""
+        ranges, pos, quality = self._measure()
+        if self.drop_pos:
+            pos = None
+        if self._stream == "lep":
+            return "" if pos is None else "POS," + _pos(pos, quality)
+        fields = [f"DIST,{len(ranges)}"]
+        for i, r in enumerate(ranges):
+            fields.append(
+                f"AN{i},{r.anchor_id},{_m(r.x_mm)},{_m(r.y_mm)},{_m(r.z_mm)},{_m(r.distance_mm)}"
+            )
+        if pos is not None:
+            fields.append("POS," + _pos(pos, quality))
+        return ",".join(fields)
+
+    def _measure(self) -> tuple[list[AnchorRange], list[float] | None, int]:
+        """Anchor ranges, position (None with fewer than three anchors) and quality factor."""
+        if self.fix_fn is not None:
+            fix = self.fix_fn()
+            if fix is None:
+                return [], None, 0
+            return list(fix.anchors), [fix.x_mm, fix.y_mm, fix.z_mm], fix.quality
+        assert self.truth_fn is not None
         x, y, z = self.truth_fn()
-        in_range = []
+        ranges = []
         for a in self.anchors:
             d = math.dist((x, y, z), (a.x_mm, a.y_mm, a.z_mm))
             if d <= self.anchor_range_mm:
-                in_range.append((a, d + self._rng.gauss(0.0, self.noise_mm)))
+                ranges.append(
+                    AnchorRange(
+                        anchor_id=a.anchor_id,
+                        x_mm=a.x_mm,
+                        y_mm=a.y_mm,
+                        z_mm=a.z_mm,
+                        distance_mm=d + self._rng.gauss(0.0, self.noise_mm),
+                    )
+                )
         pos = None
-        if len(in_range) >= 3 and not self.drop_pos:
+        if len(ranges) >= 3:
             pos = [c + self._rng.gauss(0.0, self.noise_mm) for c in (x, y, z)]
-        if self._stream == "lep":
-            return "" if pos is None else "POS," + _pos(pos, self.quality)
-        fields = [f"DIST,{len(in_range)}"]
-        for i, (a, d) in enumerate(in_range):
-            fields.append(f"AN{i},{a.anchor_id},{_m(a.x_mm)},{_m(a.y_mm)},{_m(a.z_mm)},{_m(d)}")
-        if pos is not None:
-            fields.append("POS," + _pos(pos, self.quality))
-        return ",".join(fields)
+        return ranges, pos, self.quality
 
 
 def _m(mm: float) -> str:

@@ -28,9 +28,14 @@ from coffeebot.hardware import vl53l1x as chip
 from coffeebot.hardware.i2c import I2C_M_RD
 from coffeebot.hardware.tca9548a import CHANNELS
 from coffeebot.hardware.tca9548a import DEFAULT_ADDRESS as MUX_ADDRESS
+from coffeebot.hardware.vl53l1x import RANGE_STATUS
+from coffeebot.messages import ReadingStatus
+from coffeebot.sim.world.tof import ToFReading
 
-DistanceFn = Callable[[int], float | None]
-"""True distance in mm seen by the sensor on a mux channel, or None when nothing is in view."""
+DistanceFn = Callable[[int], float | ToFReading | None]
+"""What the sensor on a mux channel sees: a true distance in mm (the chip model adds noise and
+the status), None when nothing is in view, or a finished reading with its own status and
+noise (the world's ToF model)."""
 
 
 def nack(address: int) -> OSError:
@@ -149,6 +154,8 @@ _MAX_RANGE_MM = {chip.DistanceMode.SHORT: 1300, chip.DistanceMode.LONG: 4000}
 _PHASECAL_TO_MODE = {0x14: chip.DistanceMode.SHORT, 0x0A: chip.DistanceMode.LONG}
 _RAW_VALID, _RAW_OUT_OF_BOUNDS, _RAW_BELOW_MIN, _RAW_NO_WRAP_CHECK = 9, 5, 8, 19
 _OSC_CALIBRATE = 0x012C
+# A failed reading from the world's model as the raw status the chip would latch.
+_RAW_FOR_STATUS = {status: raw for raw, status in sorted(RANGE_STATUS.items(), reverse=True)}
 
 
 class SimVL53L1X:
@@ -278,11 +285,22 @@ class SimVL53L1X:
             self._int_pending = True
 
     def _latch(self, first: bool) -> None:
-        distance = self.distance_fn(self.channel)
-        if distance is not None and self.noise_mm:
-            distance += self._rng.gauss(0.0, self.noise_mm)
+        seen = self.distance_fn(self.channel)
+        model_raw: int | None = None
+        if isinstance(seen, ToFReading):
+            distance: float | None = None
+            if seen.status is not ReadingStatus.NO_TARGET:
+                distance = float(seen.distance_mm)
+            if seen.status not in (ReadingStatus.VALID, ReadingStatus.NO_TARGET):
+                model_raw = _RAW_FOR_STATUS[seen.status]
+        else:
+            distance = seen
+            if distance is not None and self.noise_mm:
+                distance += self._rng.gauss(0.0, self.noise_mm)
         if self.forced_status is not None:
             raw = self.forced_status
+        elif model_raw is not None:
+            raw = model_raw
         elif distance is None or distance > _MAX_RANGE_MM[self.mode()]:
             raw, distance = _RAW_OUT_OF_BOUNDS, 0.0
         elif distance < _MIN_RANGE_MM:

@@ -1,9 +1,14 @@
 """A simulated motor controller on a pseudo-terminal, obeying ``docs/motor-protocol.md``.
 
-Wheels follow their set-points at once, each scaled by its own ``drift`` factor (the real
-motors differ). Encoders count ``ticks_per_mm``; the gyro reports the yaw rate the wheel
-speeds imply over ``track_mm``. Every accepted command is kept in :attr:`commands` with its
-time, so tests can check what the robot asked for and when the watchdog stopped it.
+The controller drives a :class:`Drive`: the motors, encoders and gyro behind it. The default
+:class:`IdealDrive` makes wheels follow their set-points at once, each scaled by its own
+``drift`` factor (the real motors differ); encoders count ``ticks_per_mm`` and the gyro reports
+the yaw rate the wheel speeds imply over ``track_mm``. The simulated world is the other drive,
+with physics. Every accepted command is kept in :attr:`commands` with its time, so tests can
+check what the robot asked for and when the watchdog stopped it.
+
+Fault: ``silent`` makes the firmware hang: nothing is read or sent, and the watchdog (a
+separate hardware timer on the real board) stops the motors 200 ms later.
 """
 
 from __future__ import annotations
@@ -12,6 +17,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import NamedTuple, Protocol
 
 from coffeebot.hardware.motor import MAX_LINE, WATCHDOG_FLAG, WATCHDOG_MS, decode, encode
 from coffeebot.sim.pty import PtyDevice
@@ -29,22 +35,79 @@ class Command:
     right_mm_s: int
 
 
-class SimMotorController(PtyDevice):
+class DriveSample(NamedTuple):
+    """What the controller measures: cumulative encoder counts, measured wheel speeds, gyro."""
+
+    left_ticks: int
+    right_ticks: int
+    left_mm_s: float
+    right_mm_s: float
+    gyro_z_dps: float
+
+
+class Drive(Protocol):
+    """The motors and sensors behind the controller; ``now`` is the controller's clock."""
+
+    def command(self, left_mm_s: float, right_mm_s: float, now: float) -> None: ...
+
+    def sample(self, now: float) -> DriveSample: ...
+
+
+class IdealDrive:
+    """Wheels at their set-points at once, each scaled by its ``drift`` factor."""
+
     def __init__(
         self,
-        *,
         ticks_per_mm: float = 1.2,
         track_mm: float = 440.0,
         drift: tuple[float, float] = (1.0, 1.0),
-        clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.ticks_per_mm = ticks_per_mm
         self.track_mm = track_mm
         self.drift = drift
+        self._setpoint = (0.0, 0.0)
+        self._distance_mm = [0.0, 0.0]
+        self._last: float | None = None
+
+    def _speeds(self) -> tuple[float, float]:
+        return self._setpoint[0] * self.drift[0], self._setpoint[1] * self.drift[1]
+
+    def _integrate(self, now: float) -> None:
+        dt = 0.0 if self._last is None else now - self._last
+        self._last = now
+        for i, v in enumerate(self._speeds()):
+            self._distance_mm[i] += v * dt
+
+    def command(self, left_mm_s: float, right_mm_s: float, now: float) -> None:
+        self._integrate(now)
+        self._setpoint = (left_mm_s, right_mm_s)
+
+    def sample(self, now: float) -> DriveSample:
+        self._integrate(now)
+        left, right = self._speeds()
+        return DriveSample(
+            round(self._distance_mm[0] * self.ticks_per_mm),
+            round(self._distance_mm[1] * self.ticks_per_mm),
+            left,
+            right,
+            math.degrees((right - left) / self.track_mm),
+        )
+
+
+class SimMotorController(PtyDevice):
+    def __init__(
+        self,
+        drive: Drive | None = None,
+        *,
+        clock: Callable[[], float] = time.monotonic,
+        tick_s: float = 0.005,
+    ) -> None:
+        self.drive: Drive = drive or IdealDrive()
         self.commands: list[Command] = []
         self.watchdog_trips = 0
         self.rx_errors = 0
-        super().__init__("motor", clock=clock)
+        self.silent = False
+        super().__init__("motor", clock=clock, tick_s=tick_s)
 
     def on_plugged(self) -> None:
         self.reset()
@@ -53,11 +116,11 @@ class SimMotorController(PtyDevice):
         """Power-on state: counters at zero, watchdog tripped, a ``B`` line on the wire."""
         with self._lock:
             self._boot = self.clock()
-            self._last = self._boot
             self._next_telemetry = self._boot
             self._last_command = -math.inf
-            self._setpoint = (0, 0)
-            self._distance_mm = [0.0, 0.0]
+            self._set(0, 0, self._boot)
+            first = self.drive.sample(self._boot)
+            self._ticks_at_boot = (first.left_ticks, first.right_ticks)
             self._tripped = True
             self._rx = bytearray()
             self.send(encode("B", FIRMWARE))
@@ -70,8 +133,14 @@ class SimMotorController(PtyDevice):
     def watchdog_tripped(self) -> bool:
         return self._tripped
 
+    def _set(self, left: int, right: int, now: float) -> None:
+        self._setpoint = (left, right)
+        self.drive.command(left, right, now)
+
     def on_data(self, data: bytes) -> None:
         with self._lock:
+            if self.silent:
+                return
             self._rx += data
             *lines, rest = self._rx.split(b"\n")
             self._rx = bytearray(rest)
@@ -83,7 +152,6 @@ class SimMotorController(PtyDevice):
 
     def _handle(self, line: bytes) -> None:
         now = self.clock()
-        self._integrate(now)
         try:
             kind, fields = decode(line)
             if kind == "V":
@@ -99,41 +167,31 @@ class SimMotorController(PtyDevice):
             self.send(encode("I", FIRMWARE, WATCHDOG_MS, TELEMETRY_HZ))
             return
         self.commands.append(Command(now, kind, left, right))
-        self._setpoint = (left, right)
+        self._set(left, right, now)
         self._last_command = now
         self._tripped = False
 
     def on_tick(self, now: float) -> None:
         with self._lock:
-            self._integrate(now)
             if not self._tripped and now - self._last_command > WATCHDOG_MS / 1000.0:
                 self._tripped = True
-                self._setpoint = (0, 0)
+                self._set(0, 0, now)
                 self.watchdog_trips += 1
             if now >= self._next_telemetry:
                 self._next_telemetry = max(self._next_telemetry + 1.0 / TELEMETRY_HZ, now)
-                self.send(self._telemetry(now))
+                sample = self.drive.sample(now)
+                if not self.silent:
+                    self.send(self._telemetry(now, sample))
 
-    def wheel_speeds(self) -> tuple[float, float]:
-        return self._setpoint[0] * self.drift[0], self._setpoint[1] * self.drift[1]
-
-    def _integrate(self, now: float) -> None:
-        dt = now - self._last
-        self._last = now
-        for i, v in enumerate(self.wheel_speeds()):
-            self._distance_mm[i] += v * dt
-
-    def _telemetry(self, now: float) -> bytes:
-        left, right = self.wheel_speeds()
-        yaw_mdps = math.degrees((right - left) / self.track_mm) * 1000.0
+    def _telemetry(self, now: float, sample: DriveSample) -> bytes:
         return encode(
             "T",
             int((now - self._boot) * 1000) & 0xFFFFFFFF,
-            round(self._distance_mm[0] * self.ticks_per_mm),
-            round(self._distance_mm[1] * self.ticks_per_mm),
-            round(yaw_mdps),
-            round(left),
-            round(right),
+            sample.left_ticks - self._ticks_at_boot[0],
+            sample.right_ticks - self._ticks_at_boot[1],
+            round(sample.gyro_z_dps * 1000.0),
+            round(sample.left_mm_s),
+            round(sample.right_mm_s),
             WATCHDOG_FLAG if self._tripped else 0,
             self.rx_errors,
         )

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from coffeebot.floorplan import Floor, FloorPlan
+from coffeebot.floorplan import Floor, FloorPlan, segment_distances
 from coffeebot.messages import AnchorRange, UwbFix
 from coffeebot.sim.world.elevator import SimElevator
 from coffeebot.sim.world.geometry import Surfaces, footprint_contacts
@@ -195,6 +195,45 @@ class World:
             if element not in self._touching:
                 self.collisions.append(Collision(self.t_s, self.floor_level, element, x, y, speed))
         self._touching |= contacts.keys()
+
+    def clearance_mm(self, surfaces: Surfaces | None = None, radius_mm: float = 2000.0) -> float:
+        """Gap between the body's rectangle and the nearest surface within the body's height
+        (``surfaces``: default everything on the floor within ``radius_mm``); 0 while touching,
+        ``inf`` when nothing is that close."""
+        if self._touching and surfaces is None:
+            return 0.0
+        s, spec = self.body.state, self.robot
+        if surfaces is None:
+            everything = self.surfaces()
+            surfaces = everything.take(*everything.near(s.x, s.y, radius_mm))
+        lo, hi = spec.ground_clearance_mm, spec.height_mm
+        seg = surfaces.segments[(surfaces.segments[:, 5] >= lo) & (surfaces.segments[:, 4] <= hi)]
+        cyl = surfaces.cylinders[
+            (surfaces.cylinders[:, 4] >= lo) & (surfaces.cylinders[:, 3] <= hi)
+        ]
+        c, sn = math.cos(s.theta), math.sin(s.theta)
+        half = np.array([spec.length_mm / 2, spec.width_mm / 2])
+
+        def body_frame(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+            dx, dy = x - s.x, y - s.y
+            return np.stack([dx * c + dy * sn, -dx * sn + dy * c], axis=-1)
+
+        def outside(points: np.ndarray) -> np.ndarray:
+            return np.hypot(*np.maximum(np.abs(points) - half, 0.0).T)
+
+        gaps = [np.array([math.inf])]
+        if len(seg):
+            a, b = body_frame(seg[:, 0], seg[:, 1]), body_frame(seg[:, 2], seg[:, 3])
+            local = np.hstack([a, b])
+            gaps += [outside(a), outside(b)]
+            gaps += [
+                segment_distances(local, sx * half[0], sy * half[1])
+                for sx in (1, -1)
+                for sy in (1, -1)
+            ]
+        if len(cyl):
+            gaps.append(np.maximum(outside(body_frame(cyl[:, 0], cyl[:, 1])) - cyl[:, 2], 0.0))
+        return float(np.concatenate(gaps).min())
 
     # --- motor controller ------------------------------------------------------------------
 

@@ -1,0 +1,147 @@
+"""Faults a scenario injects into the simulated devices, each over a window of simulated time.
+
+Each fault drives the fault hooks the simulated chips already have (a NACKing sensor, an
+unplugged or babbling UWB tag, a hung motor controller), so the daemon meets them through
+its real drivers, exactly as it would on the robot.
+"""
+
+from __future__ import annotations
+
+import random
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Annotated, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, model_validator
+
+if TYPE_CHECKING:
+    from coffeebot.sim.simulation import Simulation
+
+GARBAGE_PERIOD_S = 0.1
+
+
+@dataclass
+class FaultRecord:
+    """A fault that was injected: when, what, and when it was cleared (None: never)."""
+
+    t_s: float
+    fault: str
+    detail: str
+    cleared_s: float | None = None
+
+
+class _Fault(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    kind: str
+    from_s: float = Field(ge=0, description="simulated time the fault starts")
+    to_s: float | None = Field(None, description="when it ends; leave out for the whole run")
+
+    @model_validator(mode="after")
+    def _ordered(self) -> _Fault:
+        if self.to_s is not None and self.to_s <= self.from_s:
+            raise ValueError(f"to_s ({self.to_s}) must be after from_s ({self.from_s})")
+        return self
+
+    _record: FaultRecord | None = PrivateAttr(None)
+
+    def update(self, sim: Simulation) -> FaultRecord | None:
+        """Start or end the fault as simulated time passes; the record when it starts."""
+        t = sim.t_s
+        active = t >= self.from_s and (self.to_s is None or t < self.to_s)
+        if active and self._record is None:
+            self._record = FaultRecord(t, self.kind, self.describe())
+            self.begin(sim)
+            return self._record
+        if active:
+            self.during(sim)
+        elif self._record is not None and self._record.cleared_s is None:
+            self.end(sim)
+            self._record.cleared_s = t
+        return None
+
+    def describe(self) -> str:
+        raise NotImplementedError
+
+    def begin(self, sim: Simulation) -> None:
+        raise NotImplementedError
+
+    def during(self, sim: Simulation) -> None:
+        """Called on every world step while the fault lasts."""
+
+    def end(self, sim: Simulation) -> None:
+        raise NotImplementedError
+
+
+class SensorNack(_Fault):
+    """ToF sensor ``sensor`` stops acknowledging on the I2C bus."""
+
+    kind: Literal["sensor_nack"]
+    sensor: int = Field(ge=0, le=7, description="sensor id as in the board file")
+
+    def describe(self) -> str:
+        return f"tof{self.sensor} NACKs"
+
+    def begin(self, sim: Simulation) -> None:
+        sim.tof.sensors[sim.sensor_channel[self.sensor]].nack = True
+
+    def end(self, sim: Simulation) -> None:
+        sim.tof.sensors[sim.sensor_channel[self.sensor]].nack = False
+
+
+class UwbGarbage(_Fault):
+    """The UWB line carries random bytes between the tag's lines."""
+
+    kind: Literal["uwb_garbage"]
+    bytes_per_burst: int = Field(40, gt=0)
+    seed: int = 0
+    _rng: random.Random = PrivateAttr(default_factory=random.Random)
+    _next: float = PrivateAttr(0.0)
+
+    def describe(self) -> str:
+        return f"UWB line noise, {self.bytes_per_burst} bytes every {GARBAGE_PERIOD_S:g} s"
+
+    def begin(self, sim: Simulation) -> None:
+        self._rng.seed(self.seed)
+        self._next = sim.t_s
+        self.during(sim)
+
+    def during(self, sim: Simulation) -> None:
+        if sim.t_s >= self._next:
+            self._next += GARBAGE_PERIOD_S
+            sim.uwb.inject(self._rng.randbytes(self.bytes_per_burst))
+
+    def end(self, sim: Simulation) -> None:
+        """Nothing to undo: the noise simply stops."""
+
+
+class UwbUnplug(_Fault):
+    """The UWB tag's USB cable is pulled (and pushed back at ``to_s``)."""
+
+    kind: Literal["uwb_unplug"]
+
+    def describe(self) -> str:
+        return "UWB tag unplugged"
+
+    def begin(self, sim: Simulation) -> None:
+        sim.uwb.unplug()
+
+    def end(self, sim: Simulation) -> None:
+        sim.uwb.replug()
+
+
+class MotorSilent(_Fault):
+    """The motor controller's firmware hangs: no telemetry, commands ignored."""
+
+    kind: Literal["motor_silent"]
+
+    def describe(self) -> str:
+        return "motor controller silent"
+
+    def begin(self, sim: Simulation) -> None:
+        sim.motor.silent = True
+
+    def end(self, sim: Simulation) -> None:
+        sim.motor.silent = False
+
+
+Fault = Annotated[SensorNack | UwbGarbage | UwbUnplug | MotorSilent, Field(discriminator="kind")]

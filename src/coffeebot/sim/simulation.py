@@ -1,0 +1,170 @@
+"""The simulated robot under the daemon: one :class:`World` behind the simulated buses.
+
+The world answers the simulated chips from several threads (the I2C worker reading the
+VL53L1X registers, the two pty devices) while the ``world`` module steps it on the event
+loop, so every access goes through :attr:`Simulation.lock`. Time is the daemon's clock: the
+world is stepped to ``clock.now()``, and the chips read the same clock, so a sped-up clock
+speeds up everything together.
+
+Reachable from outside as ``Runtime.sim``: ``world`` for ground truth (reports, the live
+map), :meth:`place_robot` for what moves the robot other than its wheels (the elevator).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+from coffeebot.clock import Clock
+from coffeebot.config import RobotConfig
+from coffeebot.floorplan import FloorPlan
+from coffeebot.messages import UwbFix
+from coffeebot.modules.base import Module, ModuleContext
+from coffeebot.sim.dwm1001 import SimDwm1001
+from coffeebot.sim.faults import Fault, FaultRecord
+from coffeebot.sim.i2c import make_tof_hardware
+from coffeebot.sim.motor_controller import DriveSample, SimMotorController
+from coffeebot.sim.world import ObstacleSpec, Pose, ToFReading, World
+
+DEVICE_TICK_S = 0.005
+"""Simulated seconds between two device thread ticks (motor telemetry is every 20 ms)."""
+
+
+@dataclass
+class TruthLog:
+    """What only the simulator knows, accumulated while it runs, for the report."""
+
+    min_clearance_mm: float = math.inf
+    faults: list[FaultRecord] = field(default_factory=list)
+
+
+class WorldDrive:
+    """The motor controller's motors and sensors: the world's body."""
+
+    def __init__(self, sim: Simulation) -> None:
+        self.sim = sim
+
+    def command(self, left_mm_s: float, right_mm_s: float, now: float) -> None:
+        with self.sim.lock:
+            self.sim.world.command_wheels(left_mm_s, right_mm_s)
+
+    def sample(self, now: float) -> DriveSample:
+        with self.sim.lock:
+            world = self.sim.world
+            left, right = world.encoder_ticks
+            v_left, v_right = world.wheel_speeds_mm_s
+            return DriveSample(left, right, v_left, v_right, world.gyro_z_dps())
+
+
+@dataclass(frozen=True)
+class SimSetup:
+    """What a simulated run starts from (a scenario fills it; the demo uses defaults)."""
+
+    floor: int
+    pose: Pose
+    obstacles: Sequence[ObstacleSpec] = ()
+    faults: Sequence[Fault] = ()
+    seed: int = 0
+    speed: float = 1.0
+
+
+def demo_setup(plan: FloorPlan, speed: float = 1.0) -> SimSetup:
+    """The robot in the hallway at the tea room door, facing back down the hallway."""
+    floor, door = plan.tea_room
+    x, y = floor.from_hallway(door.at_mm, 0.0)
+    return SimSetup(floor.level, Pose(x, y, floor.hallway.heading_deg + 180.0), speed=speed)
+
+
+class Simulation:
+    """The world, the simulated I2C bus, DWM1001 and motor controller wired to it."""
+
+    def __init__(
+        self,
+        world: World,
+        config: RobotConfig,
+        clock: Clock,
+        faults: Sequence[Fault] = (),
+        speed: float = 1.0,
+    ) -> None:
+        self.world = world
+        self.clock = clock
+        self.lock = threading.RLock()
+        self.faults = [fault.model_copy() for fault in faults]  # each run starts afresh
+        self.truth = TruthLog()
+        self._origin: float | None = None  # the world's t = 0 on the clock: its first step
+        by_id = sorted(config.tof.sensors, key=lambda s: s.id)
+        self._index = {s.channel: i for i, s in enumerate(by_id)}
+        self.sensor_channel = {s.id: s.channel for s in by_id}
+        self.tof = make_tof_hardware(
+            self._tof_reading,
+            self._index,
+            mux_address=config.i2c.mux_address,
+            clock=clock.now,
+        )
+        tick_s = DEVICE_TICK_S / speed
+        self.uwb = SimDwm1001(fix_fn=self._uwb_fix, clock=clock.now, tick_s=tick_s)
+        self.motor = SimMotorController(WorldDrive(self), clock=clock.now, tick_s=tick_s)
+        self.config = config.model_copy(
+            update={
+                "uwb": config.uwb.model_copy(update={"port": self.uwb.port}),
+                "motor": config.motor.model_copy(update={"port": self.motor.port}),
+            }
+        )
+        """``config`` with the serial ports pointing at the simulated devices."""
+
+    @property
+    def t_s(self) -> float:
+        """Simulated seconds since the world module started (the world's own time)."""
+        return self.world.t_s
+
+    def start(self) -> None:
+        self.uwb.start()
+        self.motor.start()
+
+    def close(self) -> None:
+        self.uwb.close()
+        self.motor.close()
+
+    def advance(self) -> None:
+        """Step the world to the clock's present, then apply the faults that are due."""
+        now = self.clock.now()
+        if self._origin is None:
+            self._origin = now  # time spent in the self-check is not part of the run
+        with self.lock:
+            self.world.step(now - self._origin - self.world.t_s)
+            gap = self.world.clearance_mm()
+            self.truth.min_clearance_mm = min(self.truth.min_clearance_mm, gap)
+        for fault in self.faults:
+            record = fault.update(self)
+            if record is not None:
+                self.truth.faults.append(record)
+
+    def place_robot(self, pose: Pose, floor: int | None = None) -> None:
+        """Move the robot without driving: the start of a run, an elevator ride."""
+        with self.lock:
+            self.world.place_robot(pose, floor)
+
+    def _tof_reading(self, channel: int) -> ToFReading:
+        with self.lock:
+            return self.world.tof_reading(self._index[channel])
+
+    def _uwb_fix(self) -> UwbFix | None:
+        with self.lock:
+            return self.world.uwb_fix()
+
+
+class WorldModule(Module):
+    """Steps the simulated world every ``step_s`` of the daemon's clock."""
+
+    name = "world"
+
+    def __init__(self, sim: Simulation, step_s: float = 0.005) -> None:
+        self.sim = sim
+        self.step_s = step_s
+
+    async def run(self, ctx: ModuleContext) -> None:
+        while True:
+            self.sim.advance()
+            await ctx.clock.sleep(self.step_s)
