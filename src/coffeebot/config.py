@@ -78,6 +78,9 @@ class MotorConfig(SerialPortConfig):
     wheel_diameter_mm: float = Field(100.0, gt=0)
     ticks_per_rev: int = Field(360, gt=0)
     wheel_base_mm: float = Field(450.0, gt=0, description="distance between wheel contacts")
+    axle_x_mm: float = Field(
+        150.0, description="driven axle ahead of the body centre (the seed's front wheels)"
+    )
     max_speed_mm_s: float = Field(1000.0, gt=0)
     max_accel_mm_s2: float = Field(500.0, gt=0)
     watchdog_ms: int = Field(200, gt=0, description="controller stops without a command")
