@@ -32,6 +32,9 @@ from coffeebot.perception.geometry import wrap_deg
 AIM_BEFORE_DRIVING_DEG = 10.0
 """``drive_to`` turns on the spot until the point is within this of straight ahead."""
 
+AIM_BEFORE_LANE_DEG = 45.0
+"""``follow_lane`` facing further than this from the direction of travel turns on the spot."""
+
 WAIT_ROOM_MM = 200.0
 """Room left beyond the planner's lethal zone where the robot waits in front of an obstacle,
 so the dynamic window can still turn away from it."""
@@ -65,6 +68,8 @@ class MotionController:
         self._state = MotionState.IDLE
         self._since = 0.0
         self._detour: float | None = None
+        self._line: float | None = None
+        """``drive_to``: the direction of the line being followed, fixed at its start."""
 
     def halt(self) -> None:
         """The safety gate stopped the motors: plan from standstill when it lets go."""
@@ -123,6 +128,7 @@ class MotionController:
         if instruction.id != self._instruction_id:
             self._instruction_id = instruction.id
             self._detour = None
+            self._line = None
             self._state = MotionState.MOVING
             self._since = now
             if instruction.target_s_mm is not None and instruction.floor == pose.floor:
@@ -167,22 +173,28 @@ class MotionController:
     def _drive_to(
         self, ins: MoveInstruction, pose: PoseEstimate, now: float, dt: float, limit: float
     ) -> Command:
+        """Aim at the point, then follow the straight line from where the robot started to
+        it (a bearing alone swings wildly as the point comes close)."""
         assert ins.x_mm is not None and ins.y_mm is not None
+        if self._line is None:
+            self._line = math.degrees(math.atan2(ins.y_mm - pose.y_mm, ins.x_mm - pose.x_mm))
+        line = math.radians(self._line)
+        ux, uy = math.cos(line), math.sin(line)
         dx, dy = ins.x_mm - pose.x_mm, ins.y_mm - pose.y_mm
-        bearing = math.degrees(math.atan2(dy, dx))
-        error = wrap_deg(bearing - pose.heading_deg)
-        distance = math.hypot(dx, dy)
-        remaining = distance * math.cos(math.radians(error))
-        if remaining <= self.profile.stop_band_mm or distance <= self.profile.stop_band_mm:
+        remaining = dx * ux + dy * uy
+        left_of_line = dy * ux - dx * uy  # how far the line lies to the robot's left
+        if remaining <= self.profile.stop_band_mm:
             status = self._status(ins.id, MotionState.DONE, now, remaining, "at the point")
             return self._command(0.0, 0.0, dt, status, limit)
         status = self._status(ins.id, MotionState.MOVING, now, remaining, ins.detail)
+        error = wrap_deg(self._line - pose.heading_deg)
         if abs(error) > AIM_BEFORE_DRIVING_DEG and self.speed < self.cfg.creep_speed_mm_s:
-            return self._command(0.0, self._turn_rate(pose.heading_deg, bearing), dt, status, limit)
+            rate = self._turn_rate(pose.heading_deg, self._line)
+            return self._command(0.0, rate, dt, status, limit)
         target = self.profile.target(remaining, ins.speed_mm_s or self.cfg.approach_speed_mm_s)
-        return self._command(
-            target, turn_rate_dps(pose.heading_deg, bearing, self.cfg), dt, status, limit
-        )
+        heading = lane_heading_deg(self._line, left_of_line, self.cfg)
+        rate = turn_rate_dps(pose.heading_deg, heading, self.cfg)
+        return self._command(target, rate, dt, status, limit)
 
     def _follow_lane(
         self,
@@ -212,6 +224,14 @@ class MotionController:
             status = self._status(ins.id, MotionState.DONE, now, remaining, "passed the point")
         else:
             status = self._status(ins.id, MotionState.MOVING, now, remaining, ins.detail)
+        if (
+            abs(wrap_deg(travel - pose.heading_deg)) > AIM_BEFORE_LANE_DEG
+            and self.speed < cfg.creep_speed_mm_s
+        ):
+            status = self._status(
+                ins.id, MotionState.MOVING, now, remaining, "turning into the lane"
+            )
+            return self._command(0.0, self._turn_rate(pose.heading_deg, travel), dt, status, limit)
         cruise = ins.speed_mm_s or cfg.cruise_speed_mm_s
         approach = cfg.approach_mm if ins.target_room is not None else 0.0
         target = self.profile.target(
