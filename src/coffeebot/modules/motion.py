@@ -200,13 +200,16 @@ class MotionModule(Module):
             self._stop(ctx.board, "motion stopped")
 
     async def _loop(self, ctx: ModuleContext) -> None:
+        """Plan once per period; a new verdict in between is only gated, which is cheap, so
+        a stop reaches the motors in the loop turn the scan arrived in."""
         last = ctx.clock.now()
         while True:
             with contextlib.suppress(TimeoutError):
                 await ctx.board.next(COLLISION, timeout=self.cfg.period_s)
             now = ctx.clock.now()
-            self.control(ctx, max(0.0, now - last))
-            last = now
+            if now - last >= self.cfg.period_s or self.gate(ctx).stop:
+                self.control(ctx, max(0.0, now - last))
+                last = now
 
     async def shutdown(self) -> None:
         """Stop the motors before the daemon cancels anything."""

@@ -68,6 +68,8 @@ class MotionController:
         self._state = MotionState.IDLE
         self._since = 0.0
         self._detour: float | None = None
+        self._past: float | None = None
+        """Going round: the furthest along-hallway position of the obstacle seen so far."""
         self._line: float | None = None
         """``drive_to``: the direction of the line being followed, fixed at its start."""
 
@@ -127,7 +129,7 @@ class MotionController:
             return self._command(0.0, 0.0, dt, status, speed_limit)
         if instruction.id != self._instruction_id:
             self._instruction_id = instruction.id
-            self._detour = None
+            self._detour = self._past = None
             self._line = None
             self._state = MotionState.MOVING
             self._since = now
@@ -246,6 +248,10 @@ class MotionController:
             obstacle_s, static = ahead
             if static and ins.avoid and self._detour is None:
                 self._detour = self._detour_lane(floor, obstacle_s, lane, direction, now)
+            if self._detour is not None:
+                far = obstacle_s + direction * cfg.static_tolerance_mm
+                if self._past is None or (far - self._past) * direction > 0:
+                    self._past = far
             if self._detour is None:
                 gap = (obstacle_s - s) * direction - self._wait_distance()
                 target = min(target, self.profile.target(gap, cruise))
@@ -261,15 +267,27 @@ class MotionController:
                 if target > 0:
                     state = MotionState.MOVING
                 status = self._status(ins.id, state, now, remaining, why)
-        elif self._detour is not None and abs(d - lane) < LANE_REJOINED_MM:
-            self._detour = None
+        elif (
+            self._detour is not None
+            and abs(d - lane) < LANE_REJOINED_MM
+            and self._passed(s, direction)
+        ):
+            self._detour = self._past = None
         if self._detour is not None:
-            goal = lane if ahead is None else self._detour
+            # Hold the detour lane until the body is past everything seen of the obstacle.
+            goal = lane if ahead is None and self._passed(s, direction) else self._detour
             return self._avoid(ins, floor, pose, goal, direction, target, now, dt, limit, remaining)
         heading = lane_heading_deg(travel, (lane - d) * direction, cfg)
         return self._command(
             target, turn_rate_dps(pose.heading_deg, heading, cfg), dt, status, limit
         )
+
+    def _passed(self, s: float, direction: float) -> bool:
+        """The body's rear is beyond the furthest obstacle cell seen while going round."""
+        if self._past is None:
+            return True
+        rear = s - direction * (self.footprint.length_mm / 2 + self.cfg.obstacle_clearance_mm)
+        return (rear - self._past) * direction > 0
 
     def _detour_lane(
         self, floor: Floor, obstacle_s: float, lane: float, direction: float, now: float
