@@ -225,13 +225,16 @@ class MotionConfig(Section):
     costmap_size_mm: float = Field(6000.0, gt=0, description="square window around the robot")
     obstacle_memory_s: float = Field(8.0, gt=0, description="unseen obstacle cells expire")
     wall_margin_mm: float = Field(
-        60.0, ge=0, description="ToF hits this close to a plan wall belong to the wall"
+        60.0, ge=0, description="a reading within this of the plan's walls is the wall"
     )
     side_clearance_mm: float = Field(
-        60.0, ge=0, description="least gap kept to a plan wall (above the collision side radius)"
+        100.0,
+        ge=0,
+        description="least gap kept to a plan wall: above the collision module's "
+        "side radius plus its hysteresis, so going round never trips it",
     )
     obstacle_clearance_mm: float = Field(
-        60.0, ge=0, description="least gap kept to an obstacle, beyond the body's corners"
+        100.0, ge=0, description="least gap kept to an obstacle, for the same reason"
     )
     inflation_mm: float = Field(400.0, ge=0, description="cost decays to zero over this")
     lookahead_mm: float = Field(2500.0, gt=0, description="lane checked for obstacles this far")

@@ -25,7 +25,7 @@ DELIVERIES = [
     "floor2-far",  # 202, the other wall, far end
     "floor2-box-in-lane",  # 209, round a box
     "floor3-elevator",  # 305, by elevator
-    "floor3-box-in-lane",  # 308, by elevator, round a box, past a walker
+    "floor3-walker",  # 308, by elevator, past a person walking
 ]
 
 

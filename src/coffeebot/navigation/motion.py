@@ -39,8 +39,6 @@ WAIT_ROOM_MM = 200.0
 """Room left beyond the planner's lethal zone where the robot waits in front of an obstacle,
 so the dynamic window can still turn away from it."""
 
-LANE_REJOINED_MM = 100.0
-
 
 @dataclass(frozen=True)
 class Command:
@@ -267,16 +265,14 @@ class MotionController:
                 if target > 0:
                     state = MotionState.MOVING
                 status = self._status(ins.id, state, now, remaining, why)
-        elif (
-            self._detour is not None
-            and abs(d - lane) < LANE_REJOINED_MM
-            and self._passed(s, direction)
-        ):
+        elif self._detour is not None and self._passed(s, direction):
+            # Past it and the lane ahead is clear: lane keeping steers back in.
             self._detour = self._past = None
         if self._detour is not None:
             # Hold the detour lane until the body is past everything seen of the obstacle.
-            goal = lane if ahead is None and self._passed(s, direction) else self._detour
-            return self._avoid(ins, floor, pose, goal, direction, target, now, dt, limit, remaining)
+            return self._avoid(
+                ins, floor, pose, self._detour, direction, target, now, dt, limit, remaining
+            )
         heading = lane_heading_deg(travel, (lane - d) * direction, cfg)
         return self._command(
             target, turn_rate_dps(pose.heading_deg, heading, cfg), dt, status, limit
