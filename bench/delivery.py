@@ -36,6 +36,9 @@ from coffeebot.sim.world import ObstacleSpec
 ROOT = Path(__file__).resolve().parents[1]
 PLAN_PATH = ROOT / "floorplans" / "cs-building.toml"
 START = StartPose(floor=2, x_mm=41500, y_mm=295, heading_deg=180)
+"""By the tea room door, facing down the hallway (floor 2 rooms)."""
+START_ELEVATOR = START.model_copy(update={"heading_deg": 0.0})
+"""Facing the elevator end (floor 3 rooms): no turn on the spot beside the wall."""
 LANE_OBSTACLES = ("cardboard_box", "mail_cart")
 
 
@@ -70,7 +73,7 @@ def random_scenario(plan: FloorPlan, rng: random.Random, index: int) -> Scenario
         floorplan=PLAN_PATH,
         seed=rng.randrange(1_000_000),
         time_limit_s=300 if floor.level != START.floor else 200,
-        start=START,
+        start=START if floor.level == START.floor else START_ELEVATOR,
         orders=[OrderSpec(room=room, at_s=2.0)],
         obstacles=obstacles,
     )
