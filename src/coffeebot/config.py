@@ -78,6 +78,9 @@ class MotorConfig(SerialPortConfig):
     wheel_diameter_mm: float = Field(100.0, gt=0)
     ticks_per_rev: int = Field(360, gt=0)
     wheel_base_mm: float = Field(450.0, gt=0, description="distance between wheel contacts")
+    axle_x_mm: float = Field(
+        150.0, description="driven axle ahead of the body centre (the seed's front wheels)"
+    )
     max_speed_mm_s: float = Field(1000.0, gt=0)
     max_accel_mm_s2: float = Field(500.0, gt=0)
     watchdog_ms: int = Field(200, gt=0, description="controller stops without a command")
@@ -218,10 +221,94 @@ class StateConfig(Section):
 
 
 class MotionConfig(Section):
+    """The motion module: lane keeping, the speed profile, the safety gate, going around."""
+
     cruise_speed_mm_s: float = Field(500.0, gt=0)
-    wall_distance_mm: float = Field(300.0, gt=0, description="keep right at this distance")
-    stale_safety_s: float = Field(0.2, gt=0)
+    approach_speed_mm_s: float = Field(
+        150.0, gt=0, description="speed over the last approach_mm before a target door"
+    )
+    approach_mm: float = Field(
+        1200.0, ge=0, description="slow down this far before a door so its detection can land"
+    )
+    creep_speed_mm_s: float = Field(30.0, gt=0, description="least speed while still short")
+    accel_mm_s2: float = Field(300.0, gt=0, description="profile limit, below the motor ramp")
+    wall_distance_mm: float = Field(
+        300.0, gt=0, description="keep right: gap between the body's side and the wall"
+    )
+    stale_safety_s: float = Field(0.2, gt=0, description="older collision verdicts mean stop")
+    stale_pose_s: float = Field(0.5, gt=0, description="older pose estimates mean stop")
     stop_tolerance_mm: float = Field(50.0, gt=0)
+    heading_tolerance_deg: float = Field(3.0, gt=0, description="a turn is done within this")
+    period_s: float = Field(
+        0.05, gt=0, description="control period; the motor driver's command timeout must be longer"
+    )
+    heading_gain: float = Field(2.0, gt=0, description="rad/s of turn per rad of heading error")
+    lateral_gain: float = Field(
+        0.004, gt=0, description="rad of heading offset per mm of error across the lane"
+    )
+    max_lane_angle_deg: float = Field(20.0, gt=0, description="steepest angle to regain a lane")
+    max_turn_rate_dps: float = Field(45.0, gt=0)
+    turn_accel_dps2: float = Field(90.0, gt=0)
+    # Local planning around obstacles (seed 003: costmap with inflation + DWA).
+    costmap_resolution_mm: float = Field(50.0, gt=0)
+    costmap_size_mm: float = Field(6000.0, gt=0, description="square window around the robot")
+    obstacle_memory_s: float = Field(8.0, gt=0, description="unseen obstacle cells expire")
+    wall_margin_mm: float = Field(
+        60.0, ge=0, description="a reading within this of the plan's walls is the wall"
+    )
+    side_clearance_mm: float = Field(
+        100.0,
+        ge=0,
+        description="least gap kept to a plan wall: above the collision module's "
+        "side radius plus its hysteresis, so going round never trips it",
+    )
+    obstacle_clearance_mm: float = Field(
+        100.0, ge=0, description="least gap kept to an obstacle, for the same reason"
+    )
+    inflation_mm: float = Field(400.0, ge=0, description="cost decays to zero over this")
+    lookahead_mm: float = Field(2500.0, gt=0, description="lane checked for obstacles this far")
+    static_confirm_s: float = Field(
+        1.5, gt=0, description="an obstacle must stand still this long to be planned around"
+    )
+    static_tolerance_mm: float = Field(100.0, gt=0, description="'still': moved less than this")
+    dwa_horizon_s: float = Field(2.0, gt=0)
+    dwa_speed_samples: int = Field(6, ge=2)
+    dwa_turn_samples: int = Field(15, ge=3)
+
+
+class ElevatorConfig(Section):
+    """How long each elevator step may take before the robot reports, retries or aborts."""
+
+    call_timeout_s: float = Field(60.0, gt=0, description="car and open doors, per call")
+    call_retries: int = Field(2, ge=0, description="calls repeated before asking the operator")
+    ride_timeout_s: float = Field(90.0, gt=0, description="car at the other floor, doors open")
+    operator_timeout_s: float = Field(
+        300.0, gt=0, description="then the step is given up and the delivery fails"
+    )
+    car_depth_mm: float = Field(
+        900.0, gt=0, description="how far past the door line the robot parks in the car"
+    )
+
+
+class NavigationConfig(Section):
+    """Delivery timing: nothing waits forever."""
+
+    base_room: str = Field("Tea room", description="where cups are loaded and the robot parks")
+    base_depth_mm: float = Field(
+        700.0, gt=0, description="parking spot: this far inside the base room's door line"
+    )
+    loading_timeout_s: float = Field(600.0, gt=0, description="no cup by then: failed")
+    pickup_timeout_s: float = Field(180.0, gt=0, description="no pickup by then: return")
+    blocked_report_s: float = Field(20.0, gt=0, description="then 'blocked' is reported")
+    on_blocked: Literal["wait", "return"] = "wait"
+    blocked_give_up_s: float = Field(
+        600.0, gt=0, description="blocked this long: fail and return whatever on_blocked says"
+    )
+    door_side_lane: bool = Field(
+        True, description="pull over to the target door's side for the last stretch"
+    )
+    pull_over_mm: float = Field(3000.0, ge=0, description="how early to cross to the door side")
+    elevator: ElevatorConfig = ElevatorConfig()
 
 
 class WebConfig(Section):
@@ -272,6 +359,7 @@ class RobotConfig(Section):
     door: DoorConfig = DoorConfig()
     state: StateConfig = StateConfig()
     motion: MotionConfig = MotionConfig()
+    navigation: NavigationConfig = NavigationConfig()
     web: WebConfig = WebConfig()
     store: StoreConfig = StoreConfig()
     logging: LoggingConfig = LoggingConfig()

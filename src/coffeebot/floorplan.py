@@ -154,8 +154,13 @@ class WallSegment(NamedTuple):
     z_top: float
 
 
-def segment_distances(segments: np.ndarray, x: float, y: float) -> np.ndarray:
-    """Distance from (x, y) to each segment of an (N, >=4) array of x0, y0, x1, y1 rows."""
+def segment_distances(
+    segments: np.ndarray, x: float | np.ndarray, y: float | np.ndarray
+) -> np.ndarray:
+    """Distance from (x, y) to each segment of an (N, >=4) array of x0, y0, x1, y1 rows.
+
+    ``x`` and ``y`` may be column arrays (P, 1): the result is then (P, N), one row per point.
+    """
     px, py = segments[:, 0], segments[:, 1]
     ex, ey = segments[:, 2] - px, segments[:, 3] - py
     length2 = np.maximum(ex * ex + ey * ey, 1e-9)

@@ -185,9 +185,11 @@ class DeliveryUpdate(Message):
 
 
 class OperatorEvent(Message):
-    """A person acted: staff loaded the cup, the customer took it, an operator cancelled."""
+    """A person acted: staff loaded the cup, the customer took it, an operator cancelled, or an
+    operator confirmed the elevator step the robot waits for (the fallback when the elevator
+    interface does not answer)."""
 
-    kind: Literal["cup_loaded", "pickup_confirmed", "cancel"]
+    kind: Literal["cup_loaded", "pickup_confirmed", "cancel", "elevator_confirm"]
     order_id: str
     source: str = "web"
 
@@ -249,13 +251,70 @@ class DoorEvent(Message):
 
 
 class MoveInstruction(Message):
-    """What navigation wants the robot to do next, as the current state reports it."""
+    """What navigation wants motion to do now; motion reports progress on ``MOTION_STATUS``.
 
-    action: Literal["stop", "forward", "turn", "follow_wall", "wait"]
-    speed_mm_s: float = 0.0
+    ``id`` changes with every new instruction so motion knows a repeat from a new goal.
+    ``follow_lane``: drive along the hallway of ``floor`` to ``target_s_mm`` (the floor plan's
+    along-hallway coordinate), ``lane_mm`` to the left of the axis (None: keep right at the
+    configured wall distance); with ``target_room`` set, the stop is refined by that door's
+    detection. ``drive_to``: straight to ``x_mm``/``y_mm`` (through a doorway, into the
+    elevator car). ``turn``: on the spot to ``heading_deg``. ``stop``/``wait``: stand still.
+    ``stop``: False passes ``target_s_mm`` at speed (a lane change on the way), True stops
+    there. ``avoid``: whether motion may leave the lane around a static obstacle.
+    """
+
+    id: int = 0
+    action: Literal["stop", "wait", "follow_lane", "drive_to", "turn"]
+    floor: int | None = None
+    target_s_mm: float | None = None
+    lane_mm: float | None = None
+    x_mm: float | None = None
+    y_mm: float | None = None
     heading_deg: float | None = None
+    speed_mm_s: float = 0.0
+    stop: bool = True
     target_room: str | None = None
+    avoid: bool = True
     detail: str = ""
+
+
+class MotionState(StrEnum):
+    IDLE = "idle"
+    MOVING = "moving"
+    AVOIDING = "avoiding"
+    WAITING = "waiting"
+    """Stopped for something in the way (a person, an unconfirmed obstacle)."""
+    BLOCKED = "blocked"
+    """Nothing admissible gets past; waiting for the way to clear."""
+    SAFETY_STOP = "safety_stop"
+    """Stopped by the safety gate: collision stop, stale or failed safety, e-stop."""
+    DONE = "done"
+
+
+class MotionStatus(Message):
+    """Motion's progress on one instruction: navigation sequences its route on this."""
+
+    instruction_id: int
+    state: MotionState
+    since_s: float = Field(0.0, ge=0, description="how long it has been in this state")
+    remaining_mm: float | None = None
+    detail: str = ""
+
+
+class ElevatorRequest(Message):
+    """Navigation asks the elevator: call the car to ``floor``, send it there, or release it."""
+
+    action: Literal["call", "send", "release"]
+    floor: int
+
+
+class ElevatorState(Message):
+    """Where the car is and whether its doors are open, as the elevator interface knows it."""
+
+    car_floor: int | None
+    doors: Literal["open", "closed", "moving"]
+    moving: bool = False
+    source: str = "elevator"
 
 
 class PoseEstimate(Message):
@@ -310,6 +369,9 @@ DOOR = Topic("perception/door", DoorEvent, Delivery.RELIABLE)
 MOVE_INSTRUCTION = Topic("nav/instruction", MoveInstruction, Delivery.LATEST)
 CURRENT_STATE = Topic("state/current", CurrentState, Delivery.LATEST)
 ORDER_UPDATE = Topic("orders/update", OrderUpdate, Delivery.RELIABLE)
+MOTION_STATUS = Topic("motion/status", MotionStatus, Delivery.LATEST)
+ELEVATOR_REQUEST = Topic("elevator/request", ElevatorRequest, Delivery.RELIABLE)
+ELEVATOR_STATE = Topic("elevator/state", ElevatorState, Delivery.LATEST)
 
 ALL_TOPICS: tuple[Topic, ...] = (
     HEALTH,
@@ -327,4 +389,7 @@ ALL_TOPICS: tuple[Topic, ...] = (
     MOVE_INSTRUCTION,
     CURRENT_STATE,
     ORDER_UPDATE,
+    MOTION_STATUS,
+    ELEVATOR_REQUEST,
+    ELEVATOR_STATE,
 )

@@ -37,15 +37,19 @@ from coffeebot.modules.angle import AngleModule
 from coffeebot.modules.base import Module, ModuleContext
 from coffeebot.modules.collision import CollisionModule
 from coffeebot.modules.door import DoorModule
+from coffeebot.modules.elevator import ElevatorInterface, ElevatorModule
+from coffeebot.modules.motion import MotionModule
 from coffeebot.modules.motor_driver import MotorDriver
+from coffeebot.modules.navigation import NavigationModule
 from coffeebot.modules.orders import OrdersModule
 from coffeebot.modules.state import StateModule
 from coffeebot.modules.tof_poller import TofPoller
 from coffeebot.modules.uwb_reader import UwbReader
 from coffeebot.modules.web import WebModule
 from coffeebot.sim.scenario import Scenario, ScenarioModule
-from coffeebot.sim.simulation import SimSetup, Simulation, WorldModule
+from coffeebot.sim.simulation import SimElevatorLink, SimSetup, Simulation, WorldModule
 from coffeebot.sim.world import RobotSpec, World
+from coffeebot.sim.world.elevator import SimElevator
 from coffeebot.store import OrderStore
 from coffeebot.systemd import Notifier, SelfCheck, control_loop_check, run_as_service
 from coffeebot.web import RoomChoice, WebDeps
@@ -77,11 +81,16 @@ class Runtime:
         return self.daemon.states[name].module
 
 
-def navigation_modules(config: RobotConfig, plan: FloorPlan) -> list[Module]:
-    """Navigation and motion (issue 6): the only publishers of ``nav/instruction`` and
-    ``motor/command``. Until they exist nothing commands the motors, so the motor driver
-    sends stops and the robot stands still."""
-    return []
+def navigation_modules(
+    config: RobotConfig, plan: FloorPlan, elevator: ElevatorInterface | None = None
+) -> list[Module]:
+    """Navigation and motion: the only publishers of ``nav/instruction`` and
+    ``motor/command``. Without an elevator interface (none on the robot yet) navigation asks
+    an operator to confirm each elevator step."""
+    modules: list[Module] = [NavigationModule(config, plan), MotionModule(config, plan)]
+    if elevator is not None:
+        modules.append(ElevatorModule(elevator))
+    return modules
 
 
 def robot_modules(
@@ -133,7 +142,7 @@ def assemble(
     if sim is not None:
         modules.append(WorldModule(sim))
     modules += robot_modules(config, plan, open_i2c, start)
-    modules += navigation_modules(config, plan)
+    modules += navigation_modules(config, plan, None if sim is None else SimElevatorLink(sim))
     modules.append(orders)
 
     def poses() -> Mapping[str, MapPose]:
@@ -227,6 +236,7 @@ async def build_sim(
         pose=setup.pose,
         obstacles=setup.obstacles,
         seed=setup.seed,
+        elevator=SimElevator(plan, car_floor=setup.floor),
     )
     sim = Simulation(world, config, clock, setup.faults, speed=setup.speed)
     start = PoseEstimate(

@@ -35,6 +35,9 @@ class OdometryStep:
     distance_mm: float
     heading_change_deg: float
     dt_s: float
+    axle_x_mm: float = 0.0
+    """Where the driven axle sits ahead of the body centre: the body turns about it, so a
+    turn on the spot moves the centre sideways."""
 
     @property
     def speed_mm_s(self) -> float:
@@ -52,6 +55,7 @@ class Odometer:
         self.cfg = cfg
         self.mm_per_tick = math.pi * motor.wheel_diameter_mm / motor.ticks_per_rev
         self.wheel_base_mm = motor.wheel_base_mm
+        self.axle_x_mm = motor.axle_x_mm
         self._last: Odometry | None = None
         self._rest_samples: list[float] = []
         self.gyro_offset_dps: float | None = None
@@ -89,7 +93,7 @@ class Odometer:
         if gyro is not None and turning:
             w = self.cfg.gyro_weight
             turn = w * gyro * dt + (1.0 - w) * encoder_turn
-        return OdometryStep((left + right) / 2.0, turn, dt)
+        return OdometryStep((left + right) / 2.0, turn, dt, self.axle_x_mm)
 
 
 class PoseFusion(Protocol):
@@ -145,11 +149,26 @@ class EkfPoseFusion:
 
     def predict(self, step: OdometryStep) -> None:
         ds, dth = step.distance_mm, math.radians(step.heading_change_deg)
-        th = self.x[2] + dth / 2.0
+        th0 = self.x[2]
+        th = th0 + dth / 2.0
         c, s = math.cos(th), math.sin(th)
-        self.x = self.x + np.array([ds * c, ds * s, dth])
+        # The body turns about the driven axle, ``a`` ahead of the centre.
+        a, c0, s0, c1, s1 = (
+            step.axle_x_mm,
+            math.cos(th0),
+            math.sin(th0),
+            math.cos(th0 + dth),
+            math.sin(th0 + dth),
+        )
+        self.x = self.x + np.array([ds * c - a * (c1 - c0), ds * s - a * (s1 - s0), dth])
         self.x[2] = math.remainder(self.x[2], math.tau)
-        F = np.array([[1.0, 0.0, -ds * s], [0.0, 1.0, ds * c], [0.0, 0.0, 1.0]])
+        F = np.array(
+            [
+                [1.0, 0.0, -ds * s + a * (s1 - s0)],
+                [0.0, 1.0, ds * c - a * (c1 - c0)],
+                [0.0, 0.0, 1.0],
+            ]
+        )
         G = np.array([[c, -ds * s / 2.0], [s, ds * c / 2.0], [0.0, 1.0]])
         sigma_ds = self.cfg.encoder_sigma_fraction * abs(ds) + 0.1
         sigma_dth = math.radians(self.cfg.heading_sigma_deg_per_m * abs(ds) / 1000.0) + 1e-5

@@ -21,7 +21,9 @@ from coffeebot.config import ConfigError, RobotConfig, describe_validation_error
 from coffeebot.floorplan import FloorPlan, load_floorplan
 from coffeebot.messages import (
     COLLISION,
+    OPERATOR_EVENT,
     ORDER_UPDATE,
+    OperatorEvent,
     OrderStatus,
     SafetyState,
 )
@@ -31,6 +33,9 @@ from coffeebot.sim.faults import Fault
 from coffeebot.sim.simulation import SimSetup, Simulation
 from coffeebot.sim.world import ObstacleSpec, Pose
 from coffeebot.store import NewOrder, OrderRules
+
+MOVING_MM_S = 20.0
+"""Faster than this (ground truth) counts as driving for the mean speed."""
 
 
 class _Model(BaseModel):
@@ -62,6 +67,15 @@ class Limits(_Model):
     cruise_speed_mm_s: float | None = Field(None, gt=0, description="navigation's cruise")
 
 
+class Staff(_Model):
+    """The people around a delivery: staff loading the cup, the customer taking it."""
+
+    load_after_s: float = Field(3.0, ge=0, description="after the order is being prepared")
+    pickup_after_s: float | None = Field(
+        5.0, ge=0, description="after the robot arrived; unset: nobody comes"
+    )
+
+
 class Scenario(_Model):
     name: str
     description: str = ""
@@ -73,6 +87,7 @@ class Scenario(_Model):
     obstacles: list[ObstacleSpec] = []
     faults: list[Fault] = []
     limits: Limits = Limits()
+    staff: Staff = Staff()
 
     def apply_limits(self, config: RobotConfig) -> RobotConfig:
         """The board's config with this scenario's speed limits."""
@@ -136,9 +151,12 @@ class OrderTrack:
     status: str = "not placed"
     detail: str = ""
     placed_at_s: float | None = None
+    preparing_at_s: float | None = None
     arrived_at_s: float | None = None
     delivered_at_s: float | None = None
     stop_error_mm: float | None = None
+    told: set[str] = field(default_factory=set)
+    """Operator events the staff or the customer already sent for this order."""
 
 
 @dataclass
@@ -153,6 +171,10 @@ class RunLog:
     orders: list[OrderTrack] = field(default_factory=list)
     safety_stops: list[SafetyStop] = field(default_factory=list)
     ended: str = ""
+    travelled_mm: float = 0.0
+    moving_s: float = 0.0
+    last_pose: Pose | None = None
+    last_t: float = 0.0
 
 
 class ScenarioModule(Module):
@@ -160,6 +182,7 @@ class ScenarioModule(Module):
 
     name = "scenario"
     inputs = (COLLISION, ORDER_UPDATE)
+    outputs = (OPERATOR_EVENT,)
 
     def __init__(
         self,
@@ -198,12 +221,48 @@ class ScenarioModule(Module):
                     previous = state
                 while (update := updates.get_nowait()) is not None:
                     self._order_update(update.msg.order_id, update.msg.status, update.msg.detail)
+                self._people(ctx, t)
+                self._odometer()
                 if t >= self.scenario.time_limit_s:
                     return self._end("time limit")
                 placed = [o for o in self.log.orders if o.id is not None]
                 if not pending and placed and all(OrderStatus(o.status).final for o in placed):
                     return self._end("every order ended")
                 await ctx.clock.sleep(0.05)
+
+    def _people(self, ctx: ModuleContext, t: float) -> None:
+        """Staff load the cup, the customer takes it, each after the scenario's delay."""
+        staff = self.scenario.staff
+        for track in self.log.orders:
+            if track.id is None:
+                continue
+            due: list[tuple[str, float | None, float | None]] = [
+                ("cup_loaded", track.preparing_at_s, staff.load_after_s),
+                ("pickup_confirmed", track.arrived_at_s, staff.pickup_after_s),
+            ]
+            for kind, since, delay in due:
+                if since is None or delay is None or kind in track.told or t < since + delay:
+                    continue
+                track.told.add(kind)
+                ctx.board.publish(
+                    OPERATOR_EVENT,
+                    OperatorEvent.model_validate(
+                        {"kind": kind, "order_id": track.id, "source": "scenario"}
+                    ),
+                )
+
+    def _odometer(self) -> None:
+        """Ground-truth distance driven and time spent moving, for the mean speed."""
+        with self.sim.lock:
+            pose, t = self.sim.world.pose, self.sim.t_s
+        last = self.log.last_pose
+        if last is not None:
+            step = math.dist(last[:2], pose[:2])
+            dt = t - self.log.last_t
+            if dt > 0 and step / dt > MOVING_MM_S:
+                self.log.travelled_mm += step
+                self.log.moving_s += dt
+        self.log.last_pose, self.log.last_t = pose, t
 
     def _end(self, why: str) -> None:
         self.log.ended = why
@@ -227,6 +286,8 @@ class ScenarioModule(Module):
             return
         track.status, track.detail = status.value, detail
         t = self.sim.t_s
+        if status is OrderStatus.PREPARING and track.preparing_at_s is None:
+            track.preparing_at_s = t
         if status is OrderStatus.ARRIVED:
             track.arrived_at_s = t
             track.stop_error_mm = self._stop_error_mm(track.spec.room)
@@ -286,6 +347,8 @@ class ScenarioModule(Module):
                 for o in self.log.orders
             ],
             "collisions": collisions,
+            "travelled_mm": round(self.log.travelled_mm),
+            "moving_s": round(self.log.moving_s, 3),
             "min_clearance_mm": round(clearance) if math.isfinite(clearance) else None,
             "safety_stops": len(self.log.safety_stops),
             "safety_stop_log": [

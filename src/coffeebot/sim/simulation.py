@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 from coffeebot.clock import Clock
 from coffeebot.config import RobotConfig
 from coffeebot.floorplan import FloorPlan
-from coffeebot.messages import UwbFix
+from coffeebot.messages import ElevatorRequest, ElevatorState, UwbFix
 from coffeebot.modules.base import Module, ModuleContext
 from coffeebot.sim.dwm1001 import SimDwm1001
 from coffeebot.sim.faults import Fault, FaultRecord
@@ -170,6 +170,24 @@ class Simulation:
     def _uwb_fix(self) -> UwbFix | None:
         with self.world_time() as world:
             return world.uwb_fix()
+
+
+class SimElevatorLink:
+    """The world's elevator as the elevator module sees it, every call under the lock."""
+
+    def __init__(self, sim: Simulation) -> None:
+        self.sim = sim
+
+    def request(self, request: ElevatorRequest) -> None:
+        with self.sim.lock:
+            if self.sim.world.elevator is not None:
+                self.sim.world.elevator.request(request)
+
+    def state(self) -> ElevatorState:
+        with self.sim.lock:
+            if self.sim.world.elevator is None:
+                return ElevatorState(car_floor=None, doors="closed", source="none")
+            return self.sim.world.elevator.state()
 
 
 class WorldModule(Module):

@@ -62,6 +62,7 @@ class RobotSpec(BaseModel):
             "length_mm": config.geometry.length_mm,
             "width_mm": config.geometry.width_mm,
             "wheel_base_mm": config.motor.wheel_base_mm,
+            "axle_x_mm": config.motor.axle_x_mm,
             "wheel_diameter_mm": config.motor.wheel_diameter_mm,
             "ticks_per_rev": config.motor.ticks_per_rev,
             "max_speed_mm_s": config.motor.max_speed_mm_s,

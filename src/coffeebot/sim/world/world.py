@@ -19,6 +19,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from coffeebot.floorplan import Floor, FloorPlan, segment_distances
 from coffeebot.messages import AnchorRange, UwbFix
+from coffeebot.sim.world.elevator import SimElevator
 from coffeebot.sim.world.geometry import Surfaces, footprint_contacts
 from coffeebot.sim.world.obstacles import ObstacleSpec, obstacle_surfaces
 from coffeebot.sim.world.robot import Pose, RobotBody, RobotSpec
@@ -66,8 +67,10 @@ class World:
         seed: int = 0,
         tof: ToFModel | None = None,
         uwb: UwbModel | None = None,
+        elevator: SimElevator | None = None,
     ) -> None:
         self.plan = plan
+        self.elevator = elevator
         self.robot = robot
         self.obstacles = tuple(obstacles)
         for obstacle in self.obstacles:
@@ -104,6 +107,8 @@ class World:
     def surfaces(self) -> Surfaces:
         """Everything on the current floor at the current time."""
         surfaces = self._static_surfaces(self.floor_level)
+        if self.elevator is not None:
+            surfaces = surfaces + self.elevator.surfaces(self.floor_level)
         for obstacle in self.obstacles:
             if obstacle.moving and obstacle.floor == self.floor_level:
                 surfaces = surfaces + obstacle_surfaces(obstacle, self.t_s)
@@ -112,9 +117,12 @@ class World:
     def _static_surfaces(self, level: int) -> Surfaces:
         if level not in self._static:
             floor = self.plan.floor(level)
+            # With a simulated elevator its car doors stand in for the plan's door leaf.
+            doors = None if self.elevator is None else self.elevator.door_element(level)
+            keep = [i for i, s in enumerate(floor.segments) if s.element != doors]
             surfaces = Surfaces(
-                floor.segment_array,
-                tuple(s.element for s in floor.segments),
+                floor.segment_array[keep],
+                tuple(floor.segments[i].element for i in keep),
                 np.zeros((0, 5)),
                 (),
             )
@@ -131,6 +139,11 @@ class World:
         are recorded."""
         if dt_s <= 0:
             return
+        if self.elevator is not None:
+            riding = self.elevator.inside(self.floor_level, *self.pose[:2])
+            arrived = self.elevator.step(dt_s)
+            if arrived is not None and riding and arrived != self.floor_level:
+                self.place_robot(self.pose, arrived)
         n = max(1, math.ceil(dt_s / PHYSICS_DT_S - 1e-9))
         h = dt_s / n
         for _ in range(n):

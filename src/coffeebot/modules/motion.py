@@ -1,0 +1,219 @@
+"""Motion module: the only writer of motor commands, and every command passes the safety gate.
+
+Each control period (and at once on every new collision verdict) it runs the
+:class:`~coffeebot.navigation.motion.MotionController` on the latest instruction and pose,
+then gates the result on the freshest safety state. The robot stops when any of these holds:
+no collision verdict yet, a verdict older than ``stale_safety_s``, a "stop" verdict, the
+e-stop engaged, the collision module reported failed (or stopped, or restarting), or no pose
+fresher than ``stale_pose_s``. A "slow" verdict caps the speed at its limit. On shutdown it
+sends a stop before anything is cancelled; if it crashes it sends a stop on the way out, the
+motor driver replaces a silent motion module's command by a stop, and the controller's own
+watchdog stops the wheels if everything above it is gone.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+from dataclasses import dataclass
+
+from coffeebot.board import Envelope
+from coffeebot.config import RobotConfig
+from coffeebot.floorplan import FloorPlan
+from coffeebot.messages import (
+    COLLISION,
+    CURRENT_STATE,
+    ESTOP,
+    HEALTH,
+    MOTION_STATUS,
+    MOTOR_COMMAND,
+    MOVE_INSTRUCTION,
+    RANGE_SCAN,
+    CollisionStatus,
+    EStop,
+    HealthStatus,
+    MotorCommand,
+    SafetyState,
+)
+from coffeebot.modules.base import Module, ModuleBoard, ModuleContext
+from coffeebot.navigation.control import wheel_speeds
+from coffeebot.navigation.costmap import Footprint, LocalCostmap
+from coffeebot.navigation.motion import MotionController
+
+COLLISION_MODULE = "collision"
+UNSAFE_HEALTH = (HealthStatus.FAILED, HealthStatus.STOPPED, HealthStatus.RESTARTING)
+
+
+@dataclass(frozen=True)
+class Gate:
+    """The safety gate's verdict: how fast the robot may go now (0: stop) and why."""
+
+    speed_limit_mm_s: float
+    reason: str
+
+    @property
+    def stop(self) -> bool:
+        return self.speed_limit_mm_s <= 0.0
+
+
+def safety_gate(
+    collision: Envelope[CollisionStatus] | None,
+    collision_age_s: float | None,
+    estop: EStop | None,
+    collision_health: HealthStatus | None,
+    stale_after_s: float,
+) -> Gate:
+    """Stop on any doubt; otherwise the verdict's speed limit."""
+    if estop is not None and estop.engaged:
+        return Gate(0.0, f"e-stop engaged by {estop.source}")
+    if collision_health in UNSAFE_HEALTH:
+        return Gate(0.0, f"collision module {collision_health.value}")
+    if collision is None or collision_age_s is None:
+        return Gate(0.0, "no collision verdict yet")
+    if collision_age_s > stale_after_s:
+        return Gate(0.0, f"collision verdict {collision_age_s:.2f} s old")
+    verdict = collision.msg
+    if verdict.state is SafetyState.STOP:
+        return Gate(0.0, f"collision stop: {verdict.reason}")
+    if verdict.state is SafetyState.SLOW:
+        return Gate(verdict.speed_limit_mm_s, f"slow: {verdict.reason}")
+    return Gate(verdict.speed_limit_mm_s or float("inf"), "clear")
+
+
+class MotionModule(Module):
+    name = "motion"
+    inputs = (MOVE_INSTRUCTION, CURRENT_STATE, COLLISION, ESTOP, HEALTH, RANGE_SCAN)
+    outputs = (MOTOR_COMMAND, MOTION_STATUS)
+    shutdown_order = 0  # with the motor driver: first to stop
+    critical = True
+
+    def __init__(self, config: RobotConfig, plan: FloorPlan) -> None:
+        self.config = config
+        self.cfg = config.motion
+        self.plan = plan
+        self.footprint = Footprint(
+            config.geometry.length_mm,
+            config.geometry.width_mm,
+            # Keep the collision module's front stop distance free, so going round never
+            # trips it: its radius (and hysteresis) less the clearance kept anyway.
+            front_extra_mm=max(
+                0.0,
+                config.collision.front_radius_mm
+                + config.collision.hysteresis_mm
+                - config.motion.obstacle_clearance_mm,
+            ),
+        )
+        self.costmap = LocalCostmap(
+            self.cfg, config.tof.sensors, self.footprint, config.tof.effective_half_fov_deg
+        )
+        self.controller = MotionController(self.cfg, plan, self.costmap, self.footprint)
+        self.collision_health: HealthStatus | None = None
+        self._board: ModuleBoard | None = None
+        self._stopping = False
+
+    def _stop(self, board: ModuleBoard, reason: str) -> None:
+        board.publish(MOTOR_COMMAND, MotorCommand(left_mm_s=0.0, right_mm_s=0.0, reason=reason))
+
+    async def _watch_health(self, ctx: ModuleContext) -> None:
+        with ctx.board.subscribe(HEALTH) as health:
+            async for envelope in health:
+                if envelope.msg.module == COLLISION_MODULE and envelope.msg.component is None:
+                    self.collision_health = envelope.msg.status
+
+    async def _map(self, ctx: ModuleContext) -> None:
+        """Every scan into the costmap, placed with the freshest pose."""
+        with ctx.board.subscribe(RANGE_SCAN) as scans:
+            async for envelope in scans:
+                state = ctx.board.latest(CURRENT_STATE)
+                if state is None or not state.msg.pose.initialised:
+                    continue
+                pose = state.msg.pose
+                self.costmap.update(
+                    envelope.msg,
+                    self.plan.floor(pose.floor),
+                    pose.x_mm,
+                    pose.y_mm,
+                    pose.heading_deg,
+                    ctx.clock.now(),
+                )
+
+    def gate(self, ctx: ModuleContext) -> Gate:
+        estop = ctx.board.latest(ESTOP)
+        gate = safety_gate(
+            ctx.board.latest(COLLISION),
+            ctx.board.age(COLLISION),
+            None if estop is None else estop.msg,
+            self.collision_health,
+            self.cfg.stale_safety_s,
+        )
+        state, age = ctx.board.latest(CURRENT_STATE), ctx.board.age(CURRENT_STATE)
+        if not gate.stop and (
+            state is None
+            or age is None
+            or age > self.cfg.stale_pose_s
+            or not state.msg.pose.initialised
+        ):
+            return Gate(0.0, "no fresh pose")
+        return gate
+
+    def control(self, ctx: ModuleContext, dt: float) -> None:
+        """One period: plan, gate, publish the command and the status."""
+        now = ctx.clock.now()
+        gate = self.gate(ctx)
+        instruction = ctx.board.latest(MOVE_INSTRUCTION)
+        ins = None if instruction is None else instruction.msg
+        state = ctx.board.latest(CURRENT_STATE)
+        if self._stopping:
+            gate = Gate(0.0, "shutting down")
+        if gate.stop or state is None:
+            self.controller.halt()
+            self._stop(ctx.board, gate.reason)
+            ctx.board.publish(
+                MOTION_STATUS,
+                self.controller.safety_status(-1 if ins is None else ins.id, now, gate.reason),
+            )
+            return
+        command = self.controller.step(ins, state.msg.pose, now, dt, gate.speed_limit_mm_s)
+        left, right = wheel_speeds(
+            command.speed_mm_s, command.yaw_rate_dps, self.config.motor.wheel_base_mm
+        )
+        reason = command.status.state.value
+        if gate.speed_limit_mm_s < self.cfg.cruise_speed_mm_s:
+            reason = f"{reason}; {gate.reason}"
+        ctx.board.publish(
+            MOTOR_COMMAND, MotorCommand(left_mm_s=left, right_mm_s=right, reason=reason)
+        )
+        ctx.board.publish(MOTION_STATUS, command.status)
+
+    async def run(self, ctx: ModuleContext) -> None:
+        self._board = ctx.board
+        self.controller.halt()
+        self._stop(ctx.board, "motion starting")
+        try:
+            async with asyncio.TaskGroup() as group:
+                group.create_task(self._watch_health(ctx))
+                group.create_task(self._map(ctx))
+                group.create_task(self._loop(ctx))
+        finally:
+            # A crash or a cancel: the last word to the motors is "stop".
+            self.controller.halt()
+            self._stop(ctx.board, "motion stopped")
+
+    async def _loop(self, ctx: ModuleContext) -> None:
+        """Plan once per period; a new verdict in between is only gated, which is cheap, so
+        a stop reaches the motors in the loop turn the scan arrived in."""
+        last = ctx.clock.now()
+        while True:
+            with contextlib.suppress(TimeoutError):
+                await ctx.board.next(COLLISION, timeout=self.cfg.period_s)
+            now = ctx.clock.now()
+            if now - last >= self.cfg.period_s or self.gate(ctx).stop:
+                self.control(ctx, max(0.0, now - last))
+                last = now
+
+    async def shutdown(self) -> None:
+        """Stop the motors before the daemon cancels anything."""
+        self._stopping = True
+        if self._board is not None:
+            self.controller.halt()
+            self._stop(self._board, "shutdown")

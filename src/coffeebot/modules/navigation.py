@@ -1,0 +1,322 @@
+"""Navigation module: takes the dispatched order, drives its route, reports its lifecycle.
+
+One order at a time: wait in ``preparing`` for the cup (``cup_loaded``), drive the route step
+by step (each motion step waits for motion's "done"), ride the elevator when the route says,
+report ``arrived`` at the door, wait for ``pickup_confirmed``, then go back to base. Every
+wait has a timeout from config and ends in a report: the cup never loaded, nobody picked it
+up, the elevator never came (after retries and an operator fallback), blocked for too long.
+An operator's cancel ends the order at once and sends the robot home.
+
+The elevator procedure talks to whatever serves ``elevator/request`` (the simulated
+elevator, or a building interface); when it does not answer within the timeout the call is
+repeated, then an operator is asked to confirm the step on the operator page
+(``elevator_confirm``), and when nobody does the delivery fails with the reason.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import itertools
+from collections.abc import Callable
+
+from coffeebot.board import Subscription
+from coffeebot.config import RobotConfig
+from coffeebot.floorplan import FloorPlan
+from coffeebot.messages import (
+    CURRENT_STATE,
+    DELIVERY_STATUS,
+    ELEVATOR_REQUEST,
+    ELEVATOR_STATE,
+    MOTION_STATUS,
+    MOVE_INSTRUCTION,
+    OPERATOR_EVENT,
+    ORDER_DISPATCH,
+    DeliveryUpdate,
+    ElevatorRequest,
+    ElevatorState,
+    MotionState,
+    MoveInstruction,
+    OperatorEvent,
+    OrderDispatch,
+    PoseEstimate,
+)
+from coffeebot.modules.base import Module, ModuleContext
+from coffeebot.navigation.lifecycle import DeliveryLifecycle
+from coffeebot.navigation.route import ElevatorRide, Move, Route, RoutePlanner
+
+POLL_S = 0.2
+"""How often waits re-check the board when nothing new arrives."""
+
+NOT_MOVING = (MotionState.WAITING, MotionState.BLOCKED, MotionState.SAFETY_STOP)
+
+
+class DeliveryAborted(Exception):
+    """The delivery cannot go on; the message is the reason the customer sees."""
+
+
+class NavigationModule(Module):
+    name = "navigation"
+    inputs = (ORDER_DISPATCH, OPERATOR_EVENT, CURRENT_STATE, MOTION_STATUS, ELEVATOR_STATE)
+    outputs = (MOVE_INSTRUCTION, DELIVERY_STATUS, ELEVATOR_REQUEST)
+
+    def __init__(self, config: RobotConfig, plan: FloorPlan) -> None:
+        self.config = config
+        self.nav = config.navigation
+        self.planner = RoutePlanner(
+            plan, config.motion, config.navigation, config.geometry.width_mm
+        )
+        self._ids = itertools.count(1)
+        self._handled: set[str] = set()
+        self._life: DeliveryLifecycle | None = None
+        self._events: dict[str, asyncio.Event] = {}
+        self._task: asyncio.Task[None] | None = None
+
+    # --- board helpers ---------------------------------------------------------------------
+
+    def _report(self, ctx: ModuleContext, update: DeliveryUpdate | None) -> None:
+        if update is not None:
+            ctx.log.info(
+                "delivery %s: %s (%s)", update.order_id, update.status.value, update.detail
+            )
+            ctx.board.publish(DELIVERY_STATUS, update)
+
+    def _instruct(self, ctx: ModuleContext, instruction: MoveInstruction) -> int:
+        ident = next(self._ids)
+        ctx.board.publish(MOVE_INSTRUCTION, instruction.model_copy(update={"id": ident}))
+        return ident
+
+    def _pose(self, ctx: ModuleContext) -> PoseEstimate | None:
+        state = ctx.board.latest(CURRENT_STATE)
+        return None if state is None or not state.msg.pose.initialised else state.msg.pose
+
+    async def _wait_for(
+        self, ctx: ModuleContext, check: Callable[[], bool], timeout_s: float
+    ) -> bool:
+        """Poll ``check`` on the board clock until it holds (True) or the time is up."""
+        deadline = ctx.clock.now() + timeout_s
+        while not check():
+            if ctx.clock.now() >= deadline:
+                return False
+            await ctx.clock.sleep(POLL_S)
+        return True
+
+    def _event(self, kind: str) -> asyncio.Event:
+        return self._events.setdefault(kind, asyncio.Event())
+
+    async def _pump(self, ctx: ModuleContext, events: Subscription[OperatorEvent]) -> None:
+        """Operator events for the current order: a cancel ends it, the rest are flags."""
+        async for envelope in events:
+            event = envelope.msg
+            life = self._life
+            if life is None or event.order_id != life.order_id:
+                continue
+            if event.kind == "cancel":
+                self._report(ctx, life.cancel())
+                if self._task is not None:
+                    self._task.cancel()
+            else:
+                self._event(event.kind).set()
+
+    # --- motion ----------------------------------------------------------------------------
+
+    async def _move(self, ctx: ModuleContext, move: Move) -> None:
+        """Send one instruction and wait until motion reports it done."""
+        ident = self._instruct(ctx, move.instruction)
+        reported_blocked = False
+        heard = ctx.clock.now()
+        while True:
+            with contextlib.suppress(TimeoutError):
+                await ctx.board.next(MOTION_STATUS, timeout=1.0)
+            latest = ctx.board.latest(MOTION_STATUS)
+            if latest is None or latest.msg.instruction_id != ident:
+                if ctx.clock.now() - heard > self.nav.blocked_give_up_s:
+                    raise DeliveryAborted("the motion module does not answer")
+                continue
+            heard = ctx.clock.now()
+            status = latest.msg
+            if status.instruction_id == ident and status.state is MotionState.DONE:
+                if reported_blocked:
+                    self._progress(ctx, f"on the way again: {move.instruction.detail}")
+                return
+            stuck = status.state in NOT_MOVING
+            if stuck and status.since_s >= self.nav.blocked_give_up_s:
+                raise DeliveryAborted(f"blocked for {status.since_s:.0f} s: {status.detail}")
+            if stuck and status.since_s >= self.nav.blocked_report_s and not reported_blocked:
+                reported_blocked = True
+                self._progress(ctx, f"blocked: {status.detail}")
+                if self.nav.on_blocked == "return":
+                    raise DeliveryAborted(f"blocked: {status.detail}")
+            elif not stuck and reported_blocked:
+                reported_blocked = False
+                self._progress(ctx, f"on the way again: {move.instruction.detail}")
+
+    def _progress(self, ctx: ModuleContext, detail: str) -> None:
+        life = self._life
+        if life is not None and not life.final:
+            self._report(ctx, life.progress(detail))
+
+    async def _drive(self, ctx: ModuleContext, route: Route) -> None:
+        for step in route.steps:
+            if isinstance(step, ElevatorRide):
+                await self._ride(ctx, step)
+            else:
+                await self._move(ctx, step)
+
+    # --- elevator --------------------------------------------------------------------------
+
+    async def _elevator_step(
+        self,
+        ctx: ModuleContext,
+        request: ElevatorRequest,
+        ready: Callable[[ElevatorState], bool],
+        timeout_s: float,
+        what: str,
+    ) -> None:
+        """Request, wait for ``ready``; repeat; then fall back to an operator; then give up."""
+        cfg = self.nav.elevator
+        confirmed = self._event("elevator_confirm")
+        confirmed.clear()
+
+        def done() -> bool:
+            state = ctx.board.latest(ELEVATOR_STATE)
+            return confirmed.is_set() or (state is not None and ready(state.msg))
+
+        for _ in range(cfg.call_retries + 1):
+            ctx.board.publish(ELEVATOR_REQUEST, request)
+            if await self._wait_for(ctx, done, timeout_s):
+                return
+        life = self._life
+        if life is not None and not life.final:
+            self._report(
+                ctx,
+                life.waiting_for_elevator(
+                    f"the elevator does not answer ({what}); an operator is asked to confirm"
+                ),
+            )
+        if not await self._wait_for(ctx, confirmed.is_set, cfg.operator_timeout_s):
+            raise DeliveryAborted(f"the elevator did not answer ({what}) and nobody confirmed it")
+
+    async def _ride(self, ctx: ModuleContext, ride: ElevatorRide) -> None:
+        cfg = self.nav.elevator
+        here, there = ride.from_floor, ride.to_floor
+        await self._move(ctx, ride.face_doors)
+        life = self._life
+        if life is not None and not life.final:
+            self._report(
+                ctx, life.waiting_for_elevator(f"waiting for the elevator on floor {here}")
+            )
+        await self._elevator_step(
+            ctx,
+            ElevatorRequest(action="call", floor=here),
+            lambda s: s.car_floor == here and s.doors == "open",
+            cfg.call_timeout_s,
+            f"car to floor {here}",
+        )
+        for move in ride.enter:
+            await self._move(ctx, move)
+        await self._elevator_step(
+            ctx,
+            ElevatorRequest(action="send", floor=there),
+            lambda s: s.car_floor == there and s.doors == "open",
+            cfg.ride_timeout_s,
+            f"ride to floor {there}",
+        )
+        # Confirm the floor independently: the pose's floor comes from the UWB anchors.
+        confirmed = self._event("elevator_confirm")
+        on_floor = await self._wait_for(
+            ctx,
+            lambda: ((p := self._pose(ctx)) is not None and p.floor == there) or confirmed.is_set(),
+            cfg.call_timeout_s,
+        )
+        if not on_floor:
+            raise DeliveryAborted(f"the elevator opened but the robot cannot confirm floor {there}")
+        self._progress(ctx, f"on floor {there}")
+        for move in ride.exit:
+            await self._move(ctx, move)
+        ctx.board.publish(ELEVATOR_REQUEST, ElevatorRequest(action="release", floor=there))
+
+    # --- deliveries ------------------------------------------------------------------------
+
+    def _route_to(self, ctx: ModuleContext, room: str | None) -> Route:
+        pose = self._pose(ctx)
+        if pose is None:
+            raise DeliveryAborted("the robot does not know where it is")
+        goal = self.planner.base if room is None else self.planner.door_place(room)
+        s, leave = self.planner.where(pose.floor, pose.x_mm, pose.y_mm)
+        return self.planner.route(pose.floor, s, goal, leave)
+
+    async def _serve(self, ctx: ModuleContext, life: DeliveryLifecycle) -> None:
+        nav = self.nav
+        if not await self._wait_for(ctx, self._event("cup_loaded").is_set, nav.loading_timeout_s):
+            self._report(
+                ctx, life.fail(f"the cup was not loaded within {nav.loading_timeout_s:.0f} s")
+            )
+            return
+        route = self._route_to(ctx, life.room)  # raises before leaving if the room is unknown
+        self._report(ctx, life.cup_loaded())
+        await self._drive(ctx, route)
+        status = ctx.board.latest(MOTION_STATUS)
+        detail = f"at the door of {life.room}"
+        if status is not None and status.msg.remaining_mm is not None:
+            detail += f" ({-status.msg.remaining_mm:+.0f} mm)"
+        self._report(ctx, life.arrived(detail))
+        picked = await self._wait_for(
+            ctx, self._event("pickup_confirmed").is_set, nav.pickup_timeout_s
+        )
+        if picked:
+            self._report(ctx, life.pickup_confirmed())
+        else:
+            self._report(
+                ctx,
+                life.fail(
+                    f"nobody picked the cup up within {nav.pickup_timeout_s:.0f} s; "
+                    "taking it back to the tea room"
+                ),
+            )
+
+    async def _deliver(self, ctx: ModuleContext, dispatch: OrderDispatch) -> None:
+        self._handled.add(dispatch.order_id)
+        self._events = {}
+        life = DeliveryLifecycle(dispatch.order_id, dispatch.room)
+        self._life = life
+        try:
+            self.planner.door_place(dispatch.room)
+        except KeyError:
+            self._report(ctx, life.fail(f"no room {dispatch.room!r} on the floor plan"))
+            return
+        self._task = asyncio.create_task(self._serve(ctx, life))
+        try:
+            await self._task
+        except asyncio.CancelledError:
+            if not life.final:  # this module is being cancelled, not the delivery
+                raise
+        except DeliveryAborted as exc:
+            self._report(ctx, life.fail(str(exc)))
+        finally:
+            self._task = None
+        if life.left_base:
+            await self._go_home(ctx)
+        self._life = None
+
+    async def _go_home(self, ctx: ModuleContext) -> None:
+        try:
+            await self._drive(ctx, self._route_to(ctx, None))
+        except DeliveryAborted as exc:
+            ctx.log.error("could not return to base: %s", exc)
+        self._instruct(ctx, MoveInstruction(action="stop", detail="parked"))
+
+    async def run(self, ctx: ModuleContext) -> None:
+        dispatches = ctx.board.subscribe(ORDER_DISPATCH)
+        operator = ctx.board.subscribe(OPERATOR_EVENT)
+        with dispatches, operator:
+            self._instruct(ctx, MoveInstruction(action="stop", detail="waiting for an order"))
+            async with asyncio.TaskGroup() as group:
+                group.create_task(self._pump(ctx, operator))
+                # A dispatch published before this module subscribed is only in ``latest``.
+                pending = ctx.board.latest(ORDER_DISPATCH)
+                if pending is not None and pending.msg.order_id not in self._handled:
+                    await self._deliver(ctx, pending.msg)
+                async for envelope in dispatches:
+                    if envelope.msg.order_id not in self._handled:
+                        await self._deliver(ctx, envelope.msg)

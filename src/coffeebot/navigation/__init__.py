@@ -1,0 +1,1 @@
+"""Pure navigation algorithms: routes, speed profile, local costmap and DWA, delivery lifecycle."""

@@ -1,0 +1,229 @@
+"""A local costmap from the ToF scans, in two layers (seed 003; Lu et al.'s layered costmaps).
+
+*Static layer*: the floor plan's walls, known in advance. *Obstacle layer*: a rolling grid
+around the robot, marked and cleared from the time-of-flight readings the way sonar costmaps
+are: a VL53L1X reports the nearest return within its cone, so a reading marks the whole arc
+of the cone at that range as occupied and clears the cone in front of it (everything nearer
+is known free). A reading the plan's walls explain (some ray of the cone meets a wall within
+``wall_margin_mm`` of the range) belongs to the static layer and marks nothing. Marks the
+robot does not see again expire after ``obstacle_memory_s``.
+
+Inflation is evaluated where it is needed, at the poses a planner asks about, rather than
+over the whole grid: the lethal part is exact for the robot's rectangle (an obstacle cell
+closer than ``obstacle_clearance_mm`` to the body), walls are lethal within half the body
+width plus ``side_clearance_mm`` of the centre, and the cost decays exponentially over
+``inflation_mm`` beyond that, so the planner prefers to keep its distance when it can.
+
+Each cell also remembers since when it has been continuously occupied: an obstacle whose
+nearest cells have stood for ``static_confirm_s`` is static; a walking person keeps producing
+fresh cells (approaching) or clears the old ones (leaving), so they are never "static" and the
+robot waits for them instead of steering around them.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import numpy as np
+
+from coffeebot.config import MotionConfig, TofSensorConfig
+from coffeebot.floorplan import Floor, segment_distances
+from coffeebot.messages import RangeScan, ReadingStatus
+from coffeebot.perception.collision import NOTHING_IN_RANGE
+from coffeebot.perception.geometry import sensor_origin
+
+MAX_MARK_MM = 1500.0
+"""Readings beyond this are too noisy to mark (seed 000: noise above ~1000 mm in mid mode)."""
+
+RAYS_PER_CONE = 7
+"""Rays sampled across a cone when clearing and marking."""
+
+
+def expected_range_mm(floor: Floor, x_mm: float, y_mm: float, angles: np.ndarray) -> np.ndarray:
+    """Range from (x, y) to the first plan wall along each ray (inf where there is none)."""
+    seg = floor.segment_array
+    if seg.size == 0:
+        return np.full(np.shape(angles), math.inf)
+    dx, dy = np.cos(angles)[:, None], np.sin(angles)[:, None]
+    ex, ey = (seg[:, 2] - seg[:, 0])[None, :], (seg[:, 3] - seg[:, 1])[None, :]
+    wx, wy = (seg[:, 0] - x_mm)[None, :], (seg[:, 1] - y_mm)[None, :]
+    denom = dx * ey - dy * ex
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (wx * ey - wy * ex) / denom
+        u = (wx * dy - wy * dx) / denom
+    hit = (np.abs(denom) > 1e-9) & (t > 0) & (u >= 0) & (u <= 1)
+    return np.where(hit, t, math.inf).min(axis=1)
+
+
+@dataclass(frozen=True)
+class Footprint:
+    """The body as a rectangle around its centre (robot frame: x forward, y left)."""
+
+    length_mm: float
+    width_mm: float
+    front_extra_mm: float = 0.0
+    """Kept clear ahead of the body too, so the collision module's front stop never fires."""
+
+    def gap_mm(self, local_x: np.ndarray, local_y: np.ndarray) -> np.ndarray:
+        """Distance from robot-frame points to the (extended) body outline (zero inside)."""
+        half = self.length_mm / 2.0
+        centre = self.front_extra_mm / 2.0
+        dx = np.maximum(np.abs(local_x - centre) - half - centre, 0.0)
+        dy = np.maximum(np.abs(local_y) - self.width_mm / 2.0, 0.0)
+        return np.hypot(dx, dy)
+
+
+class LocalCostmap:
+    """The obstacle layer on a rolling grid, plus cost queries against both layers."""
+
+    def __init__(
+        self,
+        cfg: MotionConfig,
+        sensors: Iterable[TofSensorConfig],
+        footprint: Footprint,
+        half_fov_deg: float,
+    ) -> None:
+        self.cfg = cfg
+        self.sensors = list(sensors)
+        self.footprint = footprint
+        self.half_fov_deg = half_fov_deg
+        self.res = cfg.costmap_resolution_mm
+        self.n = math.ceil(cfg.costmap_size_mm / self.res)
+        self.floor: Floor | None = None
+        self.origin = (0.0, 0.0)
+        self.hit_t = np.full((self.n, self.n), -math.inf)
+        self.clear_t = np.full((self.n, self.n), -math.inf)
+        self.since_t = np.full((self.n, self.n), math.inf)
+
+    # --- grid ------------------------------------------------------------------------------
+
+    def reset(self, floor: Floor | None = None, x_mm: float = 0.0, y_mm: float = 0.0) -> None:
+        self.floor = floor
+        half = self.n * self.res / 2.0
+        self.origin = (x_mm - half, y_mm - half)
+        self.hit_t.fill(-math.inf)
+        self.clear_t.fill(-math.inf)
+        self.since_t.fill(math.inf)
+
+    def _recentre(self, floor: Floor, x_mm: float, y_mm: float) -> None:
+        """Keep the robot in the middle half of the window, shifting cells by whole cells."""
+        if floor is not self.floor:
+            self.reset(floor, x_mm, y_mm)
+            return
+        half = self.n * self.res / 2.0
+        cx, cy = self.origin[0] + half, self.origin[1] + half
+        if abs(x_mm - cx) < half / 2 and abs(y_mm - cy) < half / 2:
+            return
+        shift_i = round((x_mm - cx) / self.res)
+        shift_j = round((y_mm - cy) / self.res)
+        for grid, fill in (
+            (self.hit_t, -math.inf),
+            (self.clear_t, -math.inf),
+            (self.since_t, math.inf),
+        ):
+            moved = np.full_like(grid, fill)
+            src_i = slice(max(0, shift_i), min(self.n, self.n + shift_i))
+            dst_i = slice(max(0, -shift_i), min(self.n, self.n - shift_i))
+            src_j = slice(max(0, shift_j), min(self.n, self.n + shift_j))
+            dst_j = slice(max(0, -shift_j), min(self.n, self.n - shift_j))
+            moved[dst_i, dst_j] = grid[src_i, src_j]
+            grid[...] = moved
+        self.origin = (self.origin[0] + shift_i * self.res, self.origin[1] + shift_j * self.res)
+
+    def _cells(self, xs: np.ndarray, ys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        i = np.floor((xs - self.origin[0]) / self.res).astype(int)
+        j = np.floor((ys - self.origin[1]) / self.res).astype(int)
+        inside = (i >= 0) & (i < self.n) & (j >= 0) & (j < self.n)
+        return i[inside], j[inside]
+
+    # --- marking and clearing --------------------------------------------------------------
+
+    def update(
+        self,
+        scan: RangeScan,
+        floor: Floor,
+        x_mm: float,
+        y_mm: float,
+        heading_deg: float,
+        now: float,
+    ) -> None:
+        """Clear each cone up to its reading and mark the arc at the reading."""
+        self._recentre(floor, x_mm, y_mm)
+        readings = {r.sensor: r for r in scan.readings}
+        spread = np.radians(np.linspace(-self.half_fov_deg, self.half_fov_deg, RAYS_PER_CONE))
+        for sensor in self.sensors:
+            reading = readings.get(sensor.id)
+            if reading is None or not reading.healthy:
+                continue
+            if reading.status is ReadingStatus.VALID and reading.distance_mm is not None:
+                distance: float | None = float(reading.distance_mm)
+            elif reading.status in NOTHING_IN_RANGE:
+                distance = None
+            else:
+                continue
+            sx, sy, look = sensor_origin(x_mm, y_mm, heading_deg, sensor)
+            angles = math.radians(look) + spread
+            free = MAX_MARK_MM if distance is None else min(distance, MAX_MARK_MM) - self.res
+            if free > 0:
+                steps = np.arange(0.0, free, self.res / 2.0)
+                fx = sx + np.outer(np.cos(angles), steps).ravel()
+                fy = sy + np.outer(np.sin(angles), steps).ravel()
+                i, j = self._cells(fx, fy)
+                self.clear_t[i, j] = now
+            if distance is None or distance > MAX_MARK_MM:
+                continue
+            if expected_range_mm(floor, sx, sy, angles).min() <= distance + self.cfg.wall_margin_mm:
+                continue  # the plan's walls explain the reading
+            hx = sx + distance * np.cos(angles)
+            hy = sy + distance * np.sin(angles)
+            i, j = self._cells(hx, hy)
+            fresh = ~self._occupied_at(i, j, now)
+            self.since_t[i[fresh], j[fresh]] = now
+            self.hit_t[i, j] = now
+
+    def _occupied_at(self, i: np.ndarray, j: np.ndarray, now: float) -> np.ndarray:
+        hit = self.hit_t[i, j]
+        return (hit > self.clear_t[i, j]) & (now - hit <= self.cfg.obstacle_memory_s)
+
+    def obstacles(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Centres (x, y) of occupied cells and since when each has been occupied."""
+        occupied = (self.hit_t > self.clear_t) & (now - self.hit_t <= self.cfg.obstacle_memory_s)
+        i, j = np.nonzero(occupied)
+        xs = self.origin[0] + (i + 0.5) * self.res
+        ys = self.origin[1] + (j + 0.5) * self.res
+        return xs, ys, self.since_t[i, j]
+
+    # --- cost queries ----------------------------------------------------------------------
+
+    def obstacle_gaps(
+        self, xs: np.ndarray, ys: np.ndarray, thetas: np.ndarray, now: float
+    ) -> np.ndarray:
+        """For each pose, the smallest gap between the body and an obstacle cell (inf: none)."""
+        ox, oy, _ = self.obstacles(now)
+        if ox.size == 0:
+            return np.full(np.shape(xs), math.inf)
+        dx = ox[None, :] - np.ravel(xs)[:, None]
+        dy = oy[None, :] - np.ravel(ys)[:, None]
+        c, s = np.cos(np.ravel(thetas))[:, None], np.sin(np.ravel(thetas))[:, None]
+        local_x, local_y = c * dx + s * dy, -s * dx + c * dy
+        gaps = self.footprint.gap_mm(local_x, local_y).min(axis=1) - self.res / 2.0
+        return gaps.reshape(np.shape(xs))
+
+    def wall_distances(self, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+        """For each point, the distance from the body centre to the nearest plan wall."""
+        if self.floor is None:
+            return np.full(np.shape(xs), math.inf)
+        points_x, points_y = np.ravel(xs)[:, None], np.ravel(ys)[:, None]
+        distances = segment_distances(self.floor.segment_array, points_x, points_y)
+        return distances.min(axis=1).reshape(np.shape(xs))
+
+    def cost(self, obstacle_gap_mm: np.ndarray, wall_distance_mm: np.ndarray) -> np.ndarray:
+        """Inflated cost in [0, 1], ``inf`` where the pose is lethal."""
+        cfg = self.cfg
+        wall_gap = wall_distance_mm - (self.footprint.width_mm / 2.0 + cfg.side_clearance_mm)
+        obstacle_gap = obstacle_gap_mm - cfg.obstacle_clearance_mm
+        gap = np.minimum(wall_gap, obstacle_gap)
+        cost = np.exp(-np.maximum(obstacle_gap, 0.0) / max(cfg.inflation_mm, 1.0))
+        return np.where(gap < 0.0, math.inf, cost)

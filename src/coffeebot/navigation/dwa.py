@@ -1,0 +1,135 @@
+"""The Dynamic Window Approach (Fox, Burgard, Thrun 1997; seed 003's local planner).
+
+Each control period: take the (speed, turn rate) pairs reachable within one period from the
+current ones under the acceleration limits (the dynamic window), forward-simulate each as an
+arc over ``dwa_horizon_s``, drop the arcs on which the body would come within the lethal part
+of the costmap (those are also the inadmissible ones: a speed that cannot be braked before an
+obstacle ends on it inside the horizon), and score the rest. The score rewards progress along
+the hallway and penalises distance from the lane, heading away from the direction of travel
+and inflated cost, so with a clear lane the best arc is the lane itself, and with an obstacle
+the best arc is the one that gets past it with the most room and rejoins the lane after.
+Only forward speeds are sampled: the robot has no sensors facing backwards.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from coffeebot.config import MotionConfig
+from coffeebot.floorplan import Floor
+from coffeebot.navigation.costmap import LocalCostmap
+
+SIM_STEP_S = 0.1
+
+W_PROGRESS = 1.0
+W_LANE = 3.0
+W_HEADING = 0.2
+W_COST = 0.6
+
+
+@dataclass(frozen=True)
+class DwaChoice:
+    """The best arc, or ``None`` speeds when every arc is lethal (blocked)."""
+
+    speed_mm_s: float
+    yaw_rate_dps: float
+    score: float
+    candidates: int
+    admissible: int
+
+
+class DynamicWindow:
+    """Chooses (speed, yaw rate) for one control period against a :class:`LocalCostmap`."""
+
+    def __init__(self, cfg: MotionConfig) -> None:
+        self.cfg = cfg
+
+    def window(
+        self, speed_mm_s: float, yaw_rate_dps: float, max_speed_mm_s: float, dt_s: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Speed and yaw-rate samples reachable within ``dt_s``."""
+        cfg = self.cfg
+        dv = cfg.accel_mm_s2 * max(dt_s, SIM_STEP_S)
+        dw = cfg.turn_accel_dps2 * max(dt_s, SIM_STEP_S)
+        v_lo, v_hi = max(0.0, speed_mm_s - dv), min(max_speed_mm_s, speed_mm_s + dv)
+        w_lo = max(-cfg.max_turn_rate_dps, yaw_rate_dps - dw)
+        w_hi = min(cfg.max_turn_rate_dps, yaw_rate_dps + dw)
+        speeds = np.linspace(v_lo, max(v_lo, v_hi), cfg.dwa_speed_samples)
+        rates = np.linspace(w_lo, max(w_lo, w_hi), cfg.dwa_turn_samples)
+        return speeds, rates
+
+    def choose(
+        self,
+        costmap: LocalCostmap,
+        floor: Floor,
+        pose: tuple[float, float, float],
+        speed_mm_s: float,
+        yaw_rate_dps: float,
+        *,
+        lane_mm: float,
+        direction: float,
+        max_speed_mm_s: float,
+        dt_s: float,
+        now: float,
+    ) -> DwaChoice | None:
+        """The best admissible arc from ``pose`` (x, y, heading deg); None if none is."""
+        speeds, rates = self.window(speed_mm_s, yaw_rate_dps, max_speed_mm_s, dt_s)
+        v, w = (a.ravel() for a in np.meshgrid(speeds, np.radians(rates), indexing="ij"))
+        steps = max(1, round(self.cfg.dwa_horizon_s / SIM_STEP_S))
+        t = SIM_STEP_S * np.arange(1, steps + 1)
+        x0, y0, h0 = pose[0], pose[1], math.radians(pose[2])
+        theta = h0 + np.outer(w, t)
+        straight = np.abs(w) < 1e-6
+        safe_w = np.where(straight, 1.0, w)
+        radius = (v / safe_w)[:, None]
+        xs = np.where(
+            straight[:, None],
+            x0 + np.outer(v, t) * math.cos(h0),
+            x0 + radius * (np.sin(theta) - math.sin(h0)),
+        )
+        ys = np.where(
+            straight[:, None],
+            y0 + np.outer(v, t) * math.sin(h0),
+            y0 - radius * (np.cos(theta) - math.cos(h0)),
+        )
+        gaps = costmap.obstacle_gaps(xs, ys, theta, now)
+        walls = costmap.wall_distances(xs, ys)
+        cost = costmap.cost(gaps, walls)
+        worst = cost.max(axis=1)
+        admissible = np.isfinite(worst)
+        here = costmap.obstacle_gaps(np.array([x0]), np.array([y0]), np.array([h0]), now)[0]
+        if not np.isfinite(costmap.cost(np.array([here]), np.array([math.inf]))[0]):
+            # Already inside the lethal zone (the obstacle came closer, or was seen late):
+            # arcs that do not close the gap any further may still get out of it.
+            wall_ok = np.isfinite(costmap.cost(np.full_like(walls, math.inf), walls)).all(axis=1)
+            admissible = wall_ok & (gaps.min(axis=1) >= here - 1.0)
+            worst = np.where(admissible, 1.0, math.inf)
+        if not admissible.any():
+            return None
+        s0 = floor.to_hallway(x0, y0)[0]
+        ends = [floor.to_hallway(x, y) for x, y in zip(xs[:, -1], ys[:, -1], strict=True)]
+        s_end = np.array([e[0] for e in ends])
+        d_end = np.array([e[1] for e in ends])
+        travel = math.radians(floor.hallway.heading_deg + (0.0 if direction > 0 else 180.0))
+        heading_error = np.abs(np.angle(np.exp(1j * (theta[:, -1] - travel))))
+        reach = max(max_speed_mm_s * self.cfg.dwa_horizon_s, 1.0)
+        progress = (s_end - s0) * direction / reach
+        lane = np.abs(d_end - lane_mm) / (floor.hallway.width_mm / 2.0)
+        score = (
+            W_PROGRESS * progress
+            - W_LANE * lane
+            - W_HEADING * heading_error / (math.pi / 2)
+            - W_COST * np.where(admissible, worst, 0.0)
+        )
+        score = np.where(admissible, score, -math.inf)
+        best = int(np.argmax(score))
+        return DwaChoice(
+            speed_mm_s=float(v[best]),
+            yaw_rate_dps=float(math.degrees(w[best])),
+            score=float(score[best]),
+            candidates=int(v.size),
+            admissible=int(admissible.sum()),
+        )

@@ -1,0 +1,262 @@
+"""Routes computed from the floor plan: base -> hallway -> (elevator ->) door -> base.
+
+A route is a list of steps. A :class:`Move` is one instruction for the motion module; an
+:class:`ElevatorRide` is the elevator procedure (call, wait for doors, enter, ride, confirm
+the floor, exit) with the moves it needs inside. Nothing is written per room: every point is
+derived from the floor plan's hallway frame (``s`` along the axis, ``d`` to its left), the
+doors' positions and sides, and the robot's width.
+
+Lanes follow the seed's courtesy rule: keep right at ``wall_distance_mm`` between the body's
+side and the wall, so the lane's centre line sits ``half_width - wall_distance - body/2`` from
+the axis on the right of the direction of travel. For the last stretch to a door the robot
+pulls over to the door's side, so the customer finds the cup at their door.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from coffeebot.config import MotionConfig, NavigationConfig
+from coffeebot.floorplan import Door, Floor, FloorPlan
+from coffeebot.messages import MoveInstruction
+
+
+@dataclass(frozen=True)
+class Move:
+    """One motion instruction (its ``id`` is assigned when it is sent)."""
+
+    instruction: MoveInstruction
+
+
+@dataclass(frozen=True)
+class ElevatorRide:
+    """Ride from ``from_floor`` to ``to_floor``: moves for before the call, in, and out."""
+
+    from_floor: int
+    to_floor: int
+    face_doors: Move
+    enter: list[Move]
+    exit: list[Move]
+
+
+Step = Move | ElevatorRide
+
+
+@dataclass(frozen=True)
+class Route:
+    """Steps in order, ending at the goal."""
+
+    steps: list[Step] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class Place:
+    """Where a route starts or ends: parked inside a room, or in the hallway at its door."""
+
+    floor: int
+    door: Door
+    inside: bool
+
+
+class RoutePlanner:
+    """Plans routes on one floor plan for a robot of a given width."""
+
+    def __init__(
+        self,
+        plan: FloorPlan,
+        motion: MotionConfig,
+        nav: NavigationConfig,
+        body_width_mm: float,
+    ) -> None:
+        self.plan = plan
+        self.motion = motion
+        self.nav = nav
+        self.body_width_mm = body_width_mm
+
+    # --- places ----------------------------------------------------------------------------
+
+    @property
+    def base(self) -> Place:
+        loc = self.plan.find_room(self.nav.base_room)
+        return Place(loc.floor.level, loc.door, inside=True)
+
+    def door_place(self, room: str) -> Place:
+        loc = self.plan.find_room(room)
+        return Place(loc.floor.level, loc.door, inside=False)
+
+    # --- geometry --------------------------------------------------------------------------
+
+    def lane_mm(self, floor: Floor, direction: float) -> float:
+        """Keep-right lane centre (``d``) when travelling towards ``direction`` (+1/-1 in s)."""
+        offset = floor.hallway.width_mm / 2 - self.motion.wall_distance_mm - self.body_width_mm / 2
+        return -direction * max(0.0, offset)
+
+    def side_lane_mm(self, floor: Floor, door: Door) -> float:
+        """Lane centre at the wall distance on the door's side of the hallway."""
+        return self.lane_mm(floor, -1.0 if door.side == "left" else 1.0)
+
+    @staticmethod
+    def facing_deg(floor: Floor, door: Door) -> float:
+        """Heading that looks from the hallway through ``door``."""
+        return floor.hallway.heading_deg + (90.0 if door.side == "left" else -90.0)
+
+    @staticmethod
+    def travel_deg(floor: Floor, direction: float) -> float:
+        return floor.hallway.heading_deg + (0.0 if direction > 0 else 180.0)
+
+    def inside_point(self, floor: Floor, door: Door, depth_mm: float) -> tuple[float, float]:
+        """A point ``depth_mm`` behind the wall line, through the middle of ``door``."""
+        sign = 1.0 if door.side == "left" else -1.0
+        return floor.from_hallway(door.at_mm, sign * (floor.hallway.width_mm / 2 + depth_mm))
+
+    # --- moves -----------------------------------------------------------------------------
+
+    def _lane(
+        self,
+        floor: Floor,
+        to_s: float,
+        lane: float,
+        *,
+        speed: float | None = None,
+        stop: bool = True,
+        room: str | None = None,
+        detail: str,
+    ) -> Move:
+        return Move(
+            MoveInstruction(
+                action="follow_lane",
+                floor=floor.level,
+                target_s_mm=to_s,
+                lane_mm=lane,
+                speed_mm_s=speed or self.motion.cruise_speed_mm_s,
+                stop=stop,
+                target_room=room,
+                detail=detail,
+            )
+        )
+
+    def _drive_to(self, floor: Floor, point: tuple[float, float], detail: str) -> Move:
+        return Move(
+            MoveInstruction(
+                action="drive_to",
+                floor=floor.level,
+                x_mm=point[0],
+                y_mm=point[1],
+                speed_mm_s=self.motion.approach_speed_mm_s,
+                avoid=False,
+                detail=detail,
+            )
+        )
+
+    @staticmethod
+    def _turn(floor: Floor, heading: float, detail: str) -> Move:
+        return Move(
+            MoveInstruction(action="turn", floor=floor.level, heading_deg=heading, detail=detail)
+        )
+
+    # --- routes ----------------------------------------------------------------------------
+
+    def route(
+        self, floor_level: int, s_start: float, goal: Place, leave: Door | None = None
+    ) -> Route:
+        """From ``s_start`` along ``floor_level``'s hallway (or parked behind ``leave``) to
+        ``goal``."""
+        steps: list[Step] = []
+        floor = self.plan.floor(floor_level)
+        s = s_start
+        if leave is not None:
+            s = leave.at_mm
+            lane = self.lane_mm(floor, self._direction(floor, s, goal))
+            steps.append(self._drive_to(floor, floor.from_hallway(s, lane), f"out of {leave.room}"))
+        if goal.floor != floor_level:
+            steps.extend(self._to_elevator(floor, s))
+            steps.append(self._ride(floor_level, goal.floor, goal))
+            floor = self.plan.floor(goal.floor)
+            assert floor.elevator is not None
+            s = floor.elevator.at_mm
+        steps.extend(self._along(floor, s, goal))
+        return Route(steps)
+
+    def where(self, floor_level: int, x_mm: float, y_mm: float) -> tuple[float, Door | None]:
+        """The robot's ``s`` and, when it stands behind a door (in a room), that door."""
+        floor = self.plan.floor(floor_level)
+        s, d = floor.to_hallway(x_mm, y_mm)
+        if abs(d) <= floor.hallway.width_mm / 2:
+            return s, None
+        return s, floor.nearest_door(s, "left" if d > 0 else "right")
+
+    def _direction(self, floor: Floor, s: float, goal: Place) -> float:
+        """Which way along the hallway the route leaves ``s`` in."""
+        if goal.floor != floor.level:
+            target = floor.elevator.at_mm if floor.elevator is not None else s
+        else:
+            target = goal.door.at_mm
+        return 1.0 if target >= s else -1.0
+
+    def _to_elevator(self, floor: Floor, s: float) -> list[Step]:
+        elevator = floor.elevator
+        assert elevator is not None  # the floor plan loader guarantees it
+        if abs(elevator.at_mm - s) <= self.motion.stop_tolerance_mm:
+            return []
+        lane = self.side_lane_mm(floor, elevator)
+        return [self._lane(floor, elevator.at_mm, lane, detail=f"to the elevator on {floor.name}")]
+
+    def _ride(self, from_level: int, to_level: int, goal: Place) -> ElevatorRide:
+        here, there = self.plan.floor(from_level), self.plan.floor(to_level)
+        door_here, door_there = here.elevator, there.elevator
+        assert door_here is not None and door_there is not None
+        depth = self.nav.elevator.car_depth_mm
+        facing = self.facing_deg(here, door_here)
+        target_s = goal.door.at_mm
+        direction = 1.0 if target_s >= door_there.at_mm else -1.0
+        out_lane = self.lane_mm(there, direction)
+        return ElevatorRide(
+            from_floor=from_level,
+            to_floor=to_level,
+            face_doors=self._turn(here, facing, "facing the elevator doors"),
+            enter=[
+                self._drive_to(here, self.inside_point(here, door_here, depth), "into the car"),
+                self._turn(here, facing + 180.0, "turning round in the car"),
+            ],
+            exit=[
+                self._drive_to(
+                    there,
+                    there.from_hallway(door_there.at_mm, out_lane),
+                    f"out of the elevator on floor {to_level}",
+                ),
+                self._turn(there, self.travel_deg(there, direction), "into the lane"),
+            ],
+        )
+
+    def _along(self, floor: Floor, s: float, goal: Place) -> list[Step]:
+        """Along the hallway from ``s`` to the goal's door, then into it if it is parked in."""
+        door = goal.door
+        direction = 1.0 if door.at_mm >= s else -1.0
+        steps: list[Step] = []
+        side_lane = self.side_lane_mm(floor, door)
+        keep_right = self.lane_mm(floor, direction)
+        pull_over_at = door.at_mm - direction * self.nav.pull_over_mm
+        if (
+            self.nav.door_side_lane
+            and side_lane != keep_right
+            and (pull_over_at - s) * direction > 0
+        ):
+            steps.append(
+                self._lane(floor, pull_over_at, keep_right, stop=False, detail="along the hallway")
+            )
+        lane = side_lane if self.nav.door_side_lane or goal.inside else keep_right
+        steps.append(
+            self._lane(
+                floor,
+                door.at_mm,
+                lane,
+                room=None if goal.inside else door.room,
+                detail=f"to {door.room}",
+            )
+        )
+        if goal.inside:
+            steps.append(self._turn(floor, self.facing_deg(floor, door), f"facing {door.room}"))
+            point = self.inside_point(floor, door, door.recess_mm + self.nav.base_depth_mm)
+            steps.append(self._drive_to(floor, point, f"into {door.room}"))
+            steps.append(self._turn(floor, self.facing_deg(floor, door) + 180.0, "parked"))
+        return steps

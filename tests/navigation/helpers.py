@@ -1,0 +1,94 @@
+"""The motion controller in a loop with the simulated world, without buses or the daemon.
+
+Ground-truth pose in, world scans into the costmap and the collision monitor, the gated
+command out to the wheels: what the motion module does each period, minus the board.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from coffeebot.config import RobotConfig, load_robot_config
+from coffeebot.floorplan import FloorPlan, load_floorplan
+from coffeebot.messages import (
+    MotionState,
+    MoveInstruction,
+    PoseEstimate,
+    RangeReading,
+    RangeScan,
+    SafetyState,
+)
+from coffeebot.modules.motion import MotionModule
+from coffeebot.navigation.control import wheel_speeds
+from coffeebot.perception.collision import CollisionMonitor
+from coffeebot.sim.world import World
+
+ROOT = Path(__file__).resolve().parents[2]
+CONFIG: RobotConfig = load_robot_config(ROOT / "boards" / "coffeebot-v1.toml")
+PLAN: FloorPlan = load_floorplan(ROOT / "floorplans" / "cs-building.toml")
+DT = 0.05
+
+
+def to_scan(world: World) -> RangeScan:
+    readings = [
+        RangeReading(sensor=k, status=r.status, distance_mm=r.distance_mm)
+        for k, r in enumerate(world.scan())
+    ]
+    return RangeScan(cycle_start_s=world.t_s, cycle_time_s=DT, readings=readings)
+
+
+def true_pose(world: World) -> PoseEstimate:
+    body = world.body.state
+    return PoseEstimate(
+        x_mm=world.pose.x_mm,
+        y_mm=world.pose.y_mm,
+        heading_deg=world.pose.heading_deg,
+        floor=world.floor_level,
+        sigma_x_mm=0.0,
+        sigma_y_mm=0.0,
+        sigma_heading_deg=0.0,
+        speed_mm_s=body.speed_mm_s,
+    )
+
+
+@dataclass
+class Run:
+    states: list[MotionState] = field(default_factory=list)
+    min_speed_after_start: float = 0.0
+    done: bool = False
+
+
+def drive(world: World, instruction: MoveInstruction, max_time_s: float) -> Run:
+    """Run one instruction until motion reports done (or time runs out)."""
+    module = MotionModule(CONFIG, PLAN)
+    monitor = CollisionMonitor(
+        CONFIG.tof.sensors, CONFIG.collision, max_speed_mm_s=CONFIG.motor.max_speed_mm_s
+    )
+    run = Run()
+    seq = 0
+    while world.t_s < max_time_s:
+        seq += 1
+        scan = to_scan(world)
+        pose = true_pose(world)
+        module.costmap.update(
+            scan, PLAN.floor(pose.floor), pose.x_mm, pose.y_mm, pose.heading_deg, world.t_s
+        )
+        verdict = monitor.update(scan, pose.speed_mm_s, seq)
+        limit = 0.0 if verdict.state is SafetyState.STOP else verdict.speed_limit_mm_s
+        if limit <= 0:
+            module.controller.halt()
+            world.command_wheels(0.0, 0.0)
+        else:
+            command = module.controller.step(instruction, pose, world.t_s, DT, limit)
+            run.states.append(command.status.state)
+            if command.status.state is MotionState.DONE:
+                run.done = True
+                world.command_wheels(0.0, 0.0)
+                world.step(1.0)
+                return run
+            world.command_wheels(
+                *wheel_speeds(command.speed_mm_s, command.yaw_rate_dps, CONFIG.motor.wheel_base_mm)
+            )
+        world.step(DT)
+    return run

@@ -1,0 +1,87 @@
+"""Lane keeping, the stop at a point, and going around obstacles, on the simulated world."""
+
+from __future__ import annotations
+
+from helpers import CONFIG, PLAN, drive
+
+from coffeebot.messages import MotionState, MoveInstruction
+from coffeebot.navigation.route import RoutePlanner
+from coffeebot.sim.world import ObstacleSpec, Pose, RobotSpec, World
+
+FLOOR = PLAN.floor(2)
+PLANNER = RoutePlanner(PLAN, CONFIG.motion, CONFIG.navigation, CONFIG.geometry.width_mm)
+LANE = PLANNER.lane_mm(FLOOR, 1.0)  # travelling +x: right lane is negative d
+
+
+def world_at(s: float, d: float, obstacles: list[ObstacleSpec] | None = None) -> World:
+    x, y = FLOOR.from_hallway(s, d)
+    return World(
+        PLAN,
+        RobotSpec.from_config(CONFIG),
+        floor=2,
+        pose=Pose(x, y, FLOOR.hallway.heading_deg),
+        obstacles=obstacles or [],
+        seed=3,
+    )
+
+
+def lane(to_s: float, avoid: bool = True) -> MoveInstruction:
+    return MoveInstruction(
+        id=1,
+        action="follow_lane",
+        floor=2,
+        target_s_mm=to_s,
+        lane_mm=LANE,
+        speed_mm_s=CONFIG.motion.cruise_speed_mm_s,
+        avoid=avoid,
+    )
+
+
+def test_keeps_the_lane_and_stops_at_the_target() -> None:
+    world = world_at(13000, 0.0)
+    run = drive(world, lane(19000), max_time_s=60)
+    s, d = FLOOR.to_hallway(world.pose.x_mm, world.pose.y_mm)
+    assert run.done and not world.collisions
+    assert abs(s - 19000) <= CONFIG.motion.stop_tolerance_mm
+    assert abs(d - LANE) < 60
+
+
+def test_goes_around_a_static_box_in_the_lane() -> None:
+    bx, by = FLOOR.from_hallway(17000, -650)
+    box = ObstacleSpec(id="box", kind="cardboard_box", floor=2, x_mm=bx, y_mm=by)
+    world = world_at(13000, LANE, [box])
+    run = drive(world, lane(21000), max_time_s=120)
+    assert not world.collisions
+    assert MotionState.AVOIDING in run.states
+    assert run.done
+    s, d = FLOOR.to_hallway(world.pose.x_mm, world.pose.y_mm)
+    assert abs(s - 21000) <= CONFIG.motion.stop_tolerance_mm and abs(d - LANE) < 100
+
+
+def test_waits_for_a_box_it_may_not_drive_around() -> None:
+    bx, by = FLOOR.from_hallway(17000, -650)
+    box = ObstacleSpec(id="box", kind="cardboard_box", floor=2, x_mm=bx, y_mm=by)
+    world = world_at(13000, LANE, [box])
+    run = drive(world, lane(21000, avoid=False), max_time_s=40)
+    assert not world.collisions and not run.done
+    assert run.states[-1] is MotionState.WAITING
+
+
+def test_waits_for_a_person_walking_towards_it() -> None:
+    px, py = FLOOR.from_hallway(19000, LANE)
+    end = FLOOR.from_hallway(16500, LANE)
+    person = ObstacleSpec(
+        id="walker",
+        kind="person",
+        floor=2,
+        x_mm=px,
+        y_mm=py,
+        path=[end],
+        speed_mm_s=400,
+        path_mode="once",
+    )
+    world = world_at(13000, LANE, [person])
+    run = drive(world, lane(21000), max_time_s=30)
+    assert not world.collisions
+    assert MotionState.WAITING in run.states
+    assert MotionState.AVOIDING not in run.states[: run.states.index(MotionState.WAITING) + 5]

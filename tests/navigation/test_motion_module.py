@@ -1,0 +1,133 @@
+"""The motion module's safety gate: every command follows the freshest safety state."""
+
+from __future__ import annotations
+
+import pytest
+from helpers import CONFIG, PLAN
+
+from coffeebot.board import Board
+from coffeebot.daemon import Daemon
+from coffeebot.messages import (
+    ALL_TOPICS,
+    COLLISION,
+    CURRENT_STATE,
+    ESTOP,
+    HEALTH,
+    MOTOR_COMMAND,
+    MOVE_INSTRUCTION,
+    CollisionStatus,
+    CurrentState,
+    EStop,
+    Health,
+    HealthStatus,
+    MoveInstruction,
+    PoseEstimate,
+    SafetyState,
+)
+from coffeebot.modules.motion import MotionModule, safety_gate
+from manual_clock import ManualClock
+
+FLOOR = PLAN.floor(2)
+X, Y = FLOOR.from_hallway(10000, -295)
+POSE = PoseEstimate(
+    x_mm=X, y_mm=Y, heading_deg=0.0, floor=2, sigma_x_mm=10, sigma_y_mm=10, sigma_heading_deg=1
+)
+GO = CollisionStatus(state=SafetyState.GO, scan_seq=1, speed_limit_mm_s=1000.0)
+
+
+class Rig:
+    def __init__(self, clock: ManualClock) -> None:
+        self.clock = clock
+        self.board = Board(ALL_TOPICS, clock=clock)
+        self.module = MotionModule(CONFIG, PLAN)
+        self.daemon = Daemon(self.board, [self.module])
+
+    def feed(self, collision: CollisionStatus | None = GO) -> None:
+        self.board.publish(CURRENT_STATE, CurrentState(pose=POSE))
+        if collision is not None:
+            self.board.publish(COLLISION, collision)
+
+    async def run_for(self, seconds: float, collision: CollisionStatus | None = GO) -> None:
+        """Advance time in control periods with fresh pose (and verdicts, unless None)."""
+        for _ in range(round(seconds / CONFIG.motion.period_s)):
+            self.feed(collision)
+            await self.clock.advance(CONFIG.motion.period_s)
+
+    def speed(self) -> float:
+        command = self.board.latest(MOTOR_COMMAND)
+        assert command is not None
+        return (command.msg.left_mm_s + command.msg.right_mm_s) / 2
+
+
+@pytest.fixture
+async def rig() -> Rig:
+    rig = Rig(ManualClock(100.0))
+    await rig.daemon.start()
+    rig.board.publish(
+        MOVE_INSTRUCTION,
+        MoveInstruction(id=1, action="follow_lane", floor=2, target_s_mm=30000, lane_mm=-295),
+    )
+    yield rig
+    await rig.daemon.shutdown()
+
+
+async def test_moves_with_fresh_go(rig: Rig) -> None:
+    await rig.run_for(1.0)
+    assert rig.speed() > 100
+
+
+async def test_stale_collision_verdict_stops(rig: Rig) -> None:
+    await rig.run_for(1.0)
+    await rig.run_for(CONFIG.motion.stale_safety_s * 2, collision=None)
+    assert rig.speed() == 0
+    assert "old" in rig.board.latest(MOTOR_COMMAND).msg.reason
+
+
+async def test_no_verdict_at_all_stops(rig: Rig) -> None:
+    await rig.run_for(0.5, collision=None)
+    assert rig.speed() == 0
+
+
+async def test_collision_stop_stops_at_once(rig: Rig) -> None:
+    await rig.run_for(1.0)
+    stop = CollisionStatus(state=SafetyState.STOP, scan_seq=2, reason="front obstacle")
+    rig.feed(stop)
+    await rig.clock.advance(0.0)
+    assert rig.speed() == 0
+
+
+async def test_slow_verdict_caps_the_speed(rig: Rig) -> None:
+    slow = CollisionStatus(state=SafetyState.SLOW, scan_seq=2, speed_limit_mm_s=80.0)
+    await rig.run_for(3.0, collision=slow)
+    assert 0 < rig.speed() <= 80.0
+
+
+async def test_failed_collision_module_stops(rig: Rig) -> None:
+    await rig.run_for(1.0)
+    rig.board.publish(HEALTH, Health(module="collision", status=HealthStatus.FAILED))
+    await rig.run_for(0.2)
+    assert rig.speed() == 0
+    assert "collision module failed" in rig.board.latest(MOTOR_COMMAND).msg.reason
+
+
+async def test_estop_stops_and_release_resumes(rig: Rig) -> None:
+    await rig.run_for(1.0)
+    rig.board.publish(ESTOP, EStop(engaged=True, source="operator"))
+    await rig.run_for(0.1)
+    assert rig.speed() == 0
+    rig.board.publish(ESTOP, EStop(engaged=False, source="operator"))
+    await rig.run_for(1.0)
+    assert rig.speed() > 0
+
+
+async def test_shutdown_sends_a_stop_last(rig: Rig) -> None:
+    await rig.run_for(1.0)
+    assert rig.speed() > 0
+    await rig.daemon.shutdown()
+    assert rig.speed() == 0
+
+
+def test_gate_prefers_stop_on_any_doubt() -> None:
+    assert safety_gate(None, None, None, None, 0.2).stop
+    assert safety_gate(None, None, EStop(engaged=True, source="x"), HealthStatus.RUNNING, 0.2).stop
+    assert safety_gate(None, None, None, HealthStatus.RESTARTING, 0.2).stop

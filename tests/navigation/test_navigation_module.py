@@ -1,0 +1,205 @@
+"""The navigation module's delivery flow against a stand-in motion module and elevator."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+
+import pytest
+from helpers import CONFIG, PLAN
+
+from coffeebot.board import Board
+from coffeebot.daemon import Daemon
+from coffeebot.messages import (
+    ALL_TOPICS,
+    CURRENT_STATE,
+    DELIVERY_STATUS,
+    ELEVATOR_REQUEST,
+    ELEVATOR_STATE,
+    MOTION_STATUS,
+    MOVE_INSTRUCTION,
+    OPERATOR_EVENT,
+    ORDER_DISPATCH,
+    CurrentState,
+    ElevatorState,
+    MotionState,
+    MotionStatus,
+    OperatorEvent,
+    OrderDispatch,
+    OrderStatus,
+    PoseEstimate,
+)
+from coffeebot.modules.navigation import NavigationModule
+from coffeebot.navigation.route import RoutePlanner
+from manual_clock import ManualClock
+
+PLANNER = RoutePlanner(PLAN, CONFIG.motion, CONFIG.navigation, CONFIG.geometry.width_mm)
+
+
+def pose_at(floor: int, x: float, y: float, heading: float = 0.0) -> CurrentState:
+    return CurrentState(
+        pose=PoseEstimate(
+            x_mm=x,
+            y_mm=y,
+            heading_deg=heading,
+            floor=floor,
+            sigma_x_mm=10,
+            sigma_y_mm=10,
+            sigma_heading_deg=1,
+        )
+    )
+
+
+class Stand:
+    """Motion that finishes every instruction at once; an elevator that answers, or not."""
+
+    def __init__(self, board: Board, elevator: bool) -> None:
+        self.board = board
+        self.elevator = elevator
+        self.floor = 2
+        self.car = 2
+
+    async def motion(self) -> None:
+        with self.board.subscribe(MOVE_INSTRUCTION) as instructions:
+            async for envelope in instructions:
+                ins = envelope.msg
+                floor = PLAN.floor(ins.floor or self.floor)
+                latest = self.board.latest(CURRENT_STATE)
+                x, y = latest.msg.pose.x_mm, latest.msg.pose.y_mm
+                if ins.action == "follow_lane":
+                    x, y = floor.from_hallway(ins.target_s_mm, ins.lane_mm)
+                elif ins.action == "drive_to":
+                    x, y = ins.x_mm, ins.y_mm
+                self.board.publish(CURRENT_STATE, pose_at(self.floor, x, y))
+                self.board.publish(
+                    MOTION_STATUS,
+                    MotionStatus(instruction_id=ins.id, state=MotionState.DONE, remaining_mm=0.0),
+                )
+
+    async def lift(self) -> None:
+        with self.board.subscribe(ELEVATOR_REQUEST) as requests:
+            async for envelope in requests:
+                if not self.elevator:
+                    continue
+                if envelope.msg.action in ("call", "send"):
+                    self.car = envelope.msg.floor
+                    if envelope.msg.action == "send":
+                        self.floor = self.car
+                        latest = self.board.latest(CURRENT_STATE).msg.pose
+                        self.board.publish(
+                            CURRENT_STATE, pose_at(self.floor, latest.x_mm, latest.y_mm)
+                        )
+                    self.board.publish(
+                        ELEVATOR_STATE, ElevatorState(car_floor=self.car, doors="open")
+                    )
+
+
+@pytest.fixture
+async def rig():
+    clock = ManualClock(0.0)
+    board = Board(ALL_TOPICS, clock=clock)
+    base = PLANNER.base
+    x, y = PLANNER.inside_point(PLAN.floor(2), base.door, 800)
+    board.publish(CURRENT_STATE, pose_at(2, x, y, 90.0))
+    daemon = Daemon(board, [NavigationModule(CONFIG, PLAN)])
+    statuses = board.subscribe(DELIVERY_STATUS)
+    yield clock, board, daemon, statuses
+    await daemon.shutdown()
+
+
+async def run_stand(board: Board, elevator: bool) -> list[asyncio.Task[None]]:
+    stand = Stand(board, elevator)
+    return [asyncio.create_task(stand.motion()), asyncio.create_task(stand.lift())]
+
+
+def drain(statuses) -> list[OrderStatus]:
+    out = []
+    while (envelope := statuses.get_nowait()) is not None:
+        out.append(envelope.msg.status)
+    return out
+
+
+async def stop(tasks: list[asyncio.Task[None]]) -> None:
+    for task in tasks:
+        task.cancel()
+        with contextlib.suppress(asyncio.CancelledError):
+            await task
+
+
+async def test_delivery_to_the_other_floor_and_home(rig) -> None:
+    clock, board, daemon, statuses = rig
+    tasks = await run_stand(board, elevator=True)
+    await daemon.start()
+    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o1", room="305", drink="tea", name="A"))
+    await clock.advance(1.0)
+    board.publish(OPERATOR_EVENT, OperatorEvent(kind="cup_loaded", order_id="o1"))
+    await clock.advance(5.0)
+    assert drain(statuses) == [
+        OrderStatus.ON_THE_WAY,
+        OrderStatus.WAITING_FOR_ELEVATOR,
+        OrderStatus.ON_THE_WAY,
+        OrderStatus.ARRIVED,
+    ]
+    board.publish(OPERATOR_EVENT, OperatorEvent(kind="pickup_confirmed", order_id="o1"))
+    await clock.advance(5.0)
+    assert drain(statuses) == [OrderStatus.DELIVERED]
+    assert board.latest(MOVE_INSTRUCTION).msg.action == "stop"  # home and parked
+    assert board.latest(CURRENT_STATE).msg.pose.floor == 2
+    await stop(tasks)
+
+
+async def test_no_cup_no_delivery(rig) -> None:
+    clock, board, daemon, statuses = rig
+    await daemon.start()
+    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o2", room="205", drink="tea", name="B"))
+    await clock.advance(CONFIG.navigation.loading_timeout_s + 1)
+    updates = [e.msg for e in iter(statuses.get_nowait, None)]
+    assert [u.status for u in updates] == [OrderStatus.FAILED]
+    assert "not loaded" in updates[0].detail
+
+
+async def test_nobody_at_the_door_takes_the_cup_back(rig) -> None:
+    clock, board, daemon, statuses = rig
+    tasks = await run_stand(board, elevator=True)
+    await daemon.start()
+    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o3", room="205", drink="tea", name="C"))
+    await clock.advance(1.0)
+    board.publish(OPERATOR_EVENT, OperatorEvent(kind="cup_loaded", order_id="o3"))
+    await clock.advance(CONFIG.navigation.pickup_timeout_s + 5)
+    updates = [e.msg for e in iter(statuses.get_nowait, None)]
+    assert [u.status for u in updates][-1] is OrderStatus.FAILED
+    assert "nobody picked" in updates[-1].detail
+    await stop(tasks)
+
+
+async def test_silent_elevator_retries_then_asks_an_operator(rig) -> None:
+    clock, board, daemon, statuses = rig
+    tasks = await run_stand(board, elevator=False)
+    await daemon.start()
+    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o4", room="305", drink="tea", name="D"))
+    await clock.advance(1.0)
+    board.publish(OPERATOR_EVENT, OperatorEvent(kind="cup_loaded", order_id="o4"))
+    elevator = CONFIG.navigation.elevator
+    await clock.advance(elevator.call_timeout_s * (elevator.call_retries + 1) + 1)
+    updates = [e.msg for e in iter(statuses.get_nowait, None)]
+    assert "operator" in updates[-1].detail
+    # Nobody confirms either: the delivery fails with the reason instead of waiting forever.
+    await clock.advance(elevator.operator_timeout_s + 1)
+    updates = [e.msg for e in iter(statuses.get_nowait, None)]
+    assert updates[0].status is OrderStatus.FAILED and "elevator" in updates[0].detail
+    await stop(tasks)
+
+
+async def test_cancel_on_the_way_reports_cancelled(rig) -> None:
+    clock, board, daemon, statuses = rig
+    tasks = await run_stand(board, elevator=False)
+    await daemon.start()
+    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o5", room="305", drink="tea", name="E"))
+    await clock.advance(1.0)
+    board.publish(OPERATOR_EVENT, OperatorEvent(kind="cup_loaded", order_id="o5"))
+    await clock.advance(5.0)
+    board.publish(OPERATOR_EVENT, OperatorEvent(kind="cancel", order_id="o5"))
+    await clock.advance(5.0)
+    statuses_seen = [e.msg.status for e in iter(statuses.get_nowait, None)]
+    assert statuses_seen[-1] is OrderStatus.CANCELLED
+    await stop(tasks)

@@ -1,0 +1,91 @@
+"""Routes from the floor plan, the speed profile, and the delivery lifecycle."""
+
+from __future__ import annotations
+
+import math
+
+from helpers import CONFIG, PLAN
+
+from coffeebot.messages import OrderStatus
+from coffeebot.navigation.control import SpeedProfile, wheel_speeds
+from coffeebot.navigation.lifecycle import DeliveryLifecycle
+from coffeebot.navigation.route import ElevatorRide, Move, RoutePlanner
+
+PLANNER = RoutePlanner(PLAN, CONFIG.motion, CONFIG.navigation, CONFIG.geometry.width_mm)
+
+
+def moves(route) -> list[Move]:
+    return [s for s in route.steps if isinstance(s, Move)]
+
+
+def test_keep_right_lane_is_at_the_wall_distance() -> None:
+    floor = PLAN.floor(2)
+    half = floor.hallway.width_mm / 2
+    lane = PLANNER.lane_mm(floor, 1.0)  # travelling +s: the right wall is at d = -half
+    gap = (lane + half) - CONFIG.geometry.width_mm / 2
+    assert math.isclose(gap, CONFIG.motion.wall_distance_mm)
+    assert PLANNER.lane_mm(floor, -1.0) == -lane
+
+
+def test_route_on_the_base_floor_leaves_the_tea_room_and_stops_at_the_door() -> None:
+    base = PLANNER.base
+    route = PLANNER.route(base.floor, base.door.at_mm, PLANNER.door_place("205"), base.door)
+    steps = moves(route)
+    assert not any(isinstance(s, ElevatorRide) for s in route.steps)
+    assert steps[0].instruction.action == "drive_to"
+    last = steps[-1].instruction
+    assert last.action == "follow_lane" and last.target_room == "205" and last.stop
+    assert last.target_s_mm == PLAN.find_room("205").door.at_mm
+    # 205 is on the left: the robot pulls over to that side for the last stretch.
+    assert last.lane_mm > 0
+
+
+def test_route_to_the_other_floor_rides_the_elevator() -> None:
+    base = PLANNER.base
+    route = PLANNER.route(base.floor, base.door.at_mm, PLANNER.door_place("305"), base.door)
+    rides = [s for s in route.steps if isinstance(s, ElevatorRide)]
+    assert [(r.from_floor, r.to_floor) for r in rides] == [(2, 3)]
+    assert moves(route)[-1].instruction.floor == 3
+
+
+def test_route_back_to_base_parks_inside() -> None:
+    door = PLAN.find_room("308").door
+    route = PLANNER.route(3, door.at_mm, PLANNER.base)
+    rides = [s for s in route.steps if isinstance(s, ElevatorRide)]
+    assert [(r.from_floor, r.to_floor) for r in rides] == [(3, 2)]
+    last = moves(route)[-2].instruction
+    assert last.action == "drive_to" and last.floor == 2
+    x, y = last.x_mm, last.y_mm
+    _, d = PLAN.floor(2).to_hallway(x, y)
+    assert d < -PLAN.floor(2).hallway.width_mm / 2  # behind the tea room's door line
+
+
+def test_profile_brakes_to_zero_within_the_band_and_rate_limits() -> None:
+    profile = SpeedProfile.from_config(CONFIG.motion)
+    assert profile.target(profile.stop_band_mm, 500) == 0
+    assert profile.target(5000, 500) == 500
+    assert profile.target(100, 500) < profile.target(400, 500) < 500
+    approach = profile.target(1000, 500, approach_mm=1200, approach_mm_s=150)
+    assert approach == 150
+    assert profile.step(0.0, 500.0, 0.1) == CONFIG.motion.accel_mm_s2 * 0.1
+    left, right = wheel_speeds(100, 10, 450)
+    assert left < 100 < right and math.isclose((left + right) / 2, 100)
+
+
+def test_lifecycle_reports_each_status_once_and_in_order() -> None:
+    life = DeliveryLifecycle("o1", "205")
+    assert life.pickup_confirmed() is None  # not there yet
+    assert life.cup_loaded().status is OrderStatus.ON_THE_WAY
+    assert life.cup_loaded() is None
+    assert life.waiting_for_elevator("lift").status is OrderStatus.WAITING_FOR_ELEVATOR
+    assert life.progress("floor 3").status is OrderStatus.ON_THE_WAY
+    assert life.arrived("door").status is OrderStatus.ARRIVED
+    assert life.pickup_confirmed().status is OrderStatus.DELIVERED
+    assert life.cancel() is None and life.fail("late") is None
+    assert life.returning
+
+
+def test_lifecycle_cancel_before_leaving_needs_no_return() -> None:
+    life = DeliveryLifecycle("o2", "205")
+    assert life.cancel().status is OrderStatus.CANCELLED
+    assert not life.returning
