@@ -31,27 +31,42 @@ class MonotonicClock:
 
 
 class ScaledClock:
-    """Simulated time running ``speed`` times faster than the machine's monotonic clock.
+    """Simulated time running up to ``speed`` times faster than the machine's monotonic clock.
 
     Simulated seconds start at ``start`` (zero, or a recording's first stamp when replaying)
-    when the clock is made. Sleeping ``dt`` simulated seconds sleeps ``dt / speed`` real
+    when the clock is made. Sleeping ``dt`` simulated seconds sleeps ``dt / rate`` real
     seconds, so every module keeps its rates in simulated time.
+
+    ``rate`` starts at ``speed`` and may be lowered (never above ``speed``) by whoever paces
+    the simulation when the machine cannot keep up: simulated time then slows down instead of
+    running away from the sensors, as a physics simulator's real-time factor does. Time stays
+    continuous and monotonic across a rate change.
     """
 
     def __init__(self, speed: float = 1.0, start: float = 0.0) -> None:
         if speed <= 0:
             raise ValueError(f"clock speed must be positive, got {speed}")
         self.speed = speed
-        self.start = start
-        self._origin = time.monotonic()
+        # One tuple, replaced whole: driver threads read it while the loop changes the rate.
+        self._segment = (start, time.monotonic(), speed)
+
+    @property
+    def rate(self) -> float:
+        return self._segment[2]
 
     def now(self) -> float:
-        return self.start + (time.monotonic() - self._origin) * self.speed
+        sim0, real0, rate = self._segment
+        return sim0 + (time.monotonic() - real0) * rate
+
+    def set_rate(self, rate: float) -> None:
+        """Run at ``rate`` x real time from now on (clamped to ``(0, speed]``)."""
+        real = time.monotonic()
+        sim0, real0, old = self._segment
+        self._segment = (sim0 + (real - real0) * old, real, min(max(rate, 1e-3), self.speed))
 
     def restart(self, start: float) -> None:
         """Read ``start`` from this moment on; replay uses it to line up with a recording."""
-        self.start = start
-        self._origin = time.monotonic()
+        self._segment = (start, time.monotonic(), self.rate)
 
     async def sleep(self, seconds: float) -> None:
-        await asyncio.sleep(max(0.0, seconds) / self.speed)
+        await asyncio.sleep(max(0.0, seconds) / self.rate)

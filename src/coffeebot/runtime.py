@@ -18,6 +18,7 @@ import faulthandler
 import functools
 import os
 import tempfile
+import time
 from collections.abc import AsyncIterator, Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -332,6 +333,10 @@ async def run_scenario(
         )
         return driver
 
+    started = time.monotonic()
     async with build_sim(config, plan, scenario.setup(speed), add_driver, web=web) as runtime:
         await serve(runtime, record)
-    return driver[0].report()
+    report = driver[0].report()
+    # What the machine kept up with: below the requested speed, the clock was paced down.
+    report["real_time_factor"] = round(report["sim_time_s"] / (time.monotonic() - started), 2)
+    return report

@@ -22,7 +22,7 @@ import time
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 
-from coffeebot.clock import Clock
+from coffeebot.clock import Clock, ScaledClock
 from coffeebot.config import RobotConfig
 from coffeebot.floorplan import FloorPlan
 from coffeebot.messages import ElevatorRequest, ElevatorState, UwbFix
@@ -190,8 +190,45 @@ class SimElevatorLink:
             return self.sim.world.elevator.state()
 
 
+class Pacer:
+    """Slows a :class:`ScaledClock` down when the event loop cannot keep up, and back up.
+
+    How late the world's own step wakes, in simulated time, measures the whole process: a
+    loop that is late by half a scan period is one whose sensors and modules no longer run at
+    their rates in simulated time. Lateness is smoothed over about ``1 / smoothing`` steps;
+    above ``max_lag_s`` the rate drops by ``step_down``, below a quarter of it the rate climbs
+    back towards the requested speed.
+    """
+
+    def __init__(
+        self,
+        clock: ScaledClock,
+        max_lag_s: float = 0.01,
+        smoothing: float = 0.05,
+        step_down: float = 0.85,
+        step_up: float = 1.02,
+    ) -> None:
+        self.clock = clock
+        self.max_lag_s = max_lag_s
+        self.smoothing = smoothing
+        self.step_down = step_down
+        self.step_up = step_up
+        self.lag_s = 0.0
+
+    def observe(self, lag_s: float) -> None:
+        self.lag_s += self.smoothing * (max(0.0, lag_s) - self.lag_s)
+        if self.lag_s > self.max_lag_s:
+            self.clock.set_rate(self.clock.rate * self.step_down)
+            self.lag_s = 0.0  # judge the new rate on its own lateness
+        elif self.lag_s < self.max_lag_s / 4 and self.clock.rate < self.clock.speed:
+            self.clock.set_rate(self.clock.rate * self.step_up)
+
+
 class WorldModule(Module):
-    """Steps the simulated world every ``step_s`` of the daemon's clock."""
+    """Steps the simulated world every ``step_s`` of the daemon's clock.
+
+    On a sped-up clock it also paces simulated time to what the machine keeps up with.
+    """
 
     name = "world"
 
@@ -200,6 +237,11 @@ class WorldModule(Module):
         self.step_s = step_s
 
     async def run(self, ctx: ModuleContext) -> None:
+        clock = ctx.clock
+        pacer = Pacer(clock) if isinstance(clock, ScaledClock) else None
         while True:
             self.sim.advance()
-            await ctx.clock.sleep(self.step_s)
+            before = clock.now()
+            await clock.sleep(self.step_s)
+            if pacer is not None:
+                pacer.observe(clock.now() - before - self.step_s)
