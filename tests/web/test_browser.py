@@ -15,6 +15,7 @@ from collections.abc import AsyncIterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+import playwright.async_api as playwright
 import pytest
 
 from coffeebot.board import Board
@@ -39,8 +40,6 @@ from coffeebot.web.livemap import MapPose
 
 from .conftest import ROOMS, RULES, TOKEN
 
-playwright = pytest.importorskip("playwright.async_api")
-
 CHROMIUM = Path("/usr/bin/chromium")
 CHROMIUM_ARGS = [
     "--no-sandbox",
@@ -56,9 +55,6 @@ BOARD_FILE = REPO / "boards" / "coffeebot-v1.toml"
 # README's copies in docs/screenshots/ by pointing this at them.
 SCREENSHOTS = Path(os.environ.get("COFFEEBOT_SCREENSHOTS", REPO / "test-artifacts" / "screenshots"))
 
-pytestmark = pytest.mark.skipif(
-    not CHROMIUM.exists(), reason="needs Debian's chromium (make system-deps installs it)"
-)
 
 # Floor 2: the hallway runs along +x, offices above it; the #frame group is floor-plan mm, y up.
 FLOOR_2 = """<svg xmlns="http://www.w3.org/2000/svg" viewBox="-500 -4500 17000 5000">
@@ -179,7 +175,9 @@ async def test_order_through_the_form_and_watch_it_live(
     await expect(page.locator("#status-text")).to_have_text("At your door")
     SCREENSHOTS.mkdir(parents=True, exist_ok=True)
     await page.screenshot(path=SCREENSHOTS / "order-status.png")
-    await page.click("#pickup")
+    async with page.expect_response(lambda r: r.url.endswith("/pickup")) as answer:
+        await page.click("#pickup")
+    assert (await answer.value).status == 202
     await expect(page.locator("#action-error")).to_be_hidden()
     event = served.board.latest(OPERATOR_EVENT)
     assert event is not None
