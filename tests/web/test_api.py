@@ -130,6 +130,7 @@ async def test_rate_limit_per_client(client: TestClient) -> None:
         ("POST", "/api/estop", {"engaged": True}),
         ("GET", "/api/orders", None),
         ("POST", "/api/orders/{id}/cup-loaded", None),
+        ("POST", "/api/orders/{id}/elevator-confirm", None),
     ],
 )
 @pytest.mark.parametrize(
@@ -188,6 +189,21 @@ async def test_cup_loaded_and_pickup_follow_the_lifecycle(client: TestClient, bo
     assert (event.kind, event.order_id) == ("pickup_confirmed", order["id"])
     late = await client.post(f"/api/orders/{order['id']}/cup-loaded", headers=OPERATOR)
     assert late.status == 409
+
+
+async def test_operator_confirms_the_elevator_only_while_the_robot_waits_for_it(
+    client: TestClient, board: Board
+) -> None:
+    order = await place(client)
+    path = f"/api/orders/{order['id']}/elevator-confirm"
+    assert (await client.post(path, headers=OPERATOR)).status == 409
+    update = DeliveryUpdate(order_id=order["id"], status=OrderStatus.WAITING_FOR_ELEVATOR)
+    board.publish(DELIVERY_STATUS, update)
+    async with client.get(f"/api/orders/{order['id']}/events") as stream:
+        await wait_for_status(stream, "waiting_for_elevator")
+    assert (await client.post(path, headers=OPERATOR)).status == 202
+    event = board.latest(OPERATOR_EVENT).msg
+    assert (event.kind, event.order_id) == ("elevator_confirm", order["id"])
 
 
 async def test_operator_cancels_any_order(client: TestClient, board: Board) -> None:

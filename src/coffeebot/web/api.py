@@ -138,6 +138,14 @@ async def cup_loaded(request: web.Request) -> web.Response:
     return await _event_if(request, "cup_loaded", OrderStatus.PREPARING)
 
 
+@routes.post(f"/api/orders/{ORDER_ID}/elevator-confirm")
+async def elevator_confirm(request: web.Request) -> web.Response:
+    """An operator vouches for the elevator step the robot is stuck on (the fallback when the
+    elevator does not answer, or the robot cannot confirm the floor)."""
+    operator_only(request)
+    return await _event_if(request, "elevator_confirm", OrderStatus.WAITING_FOR_ELEVATOR)
+
+
 @routes.get(f"/api/orders/{ORDER_ID}/events")
 async def order_events(request: web.Request) -> web.StreamResponse:
     """The order as JSON each time it (or its place in the queue) changes; ends when it ends."""

@@ -157,6 +157,9 @@
       if (o.status === "preparing") {
         td.appendChild(button("cup loaded", () => operator("POST", `/api/orders/${o.id}/cup-loaded`).then(showOrders)));
       }
+      if (o.status === "waiting_for_elevator") {
+        td.appendChild(button("elevator done", () => operator("POST", `/api/orders/${o.id}/elevator-confirm`).then(showOrders)));
+      }
       td.appendChild(button("cancel", () => operator("DELETE", `/api/orders/${o.id}`).then(showOrders)));
     });
   }
