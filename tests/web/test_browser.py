@@ -51,8 +51,8 @@ CHROMIUM_ARGS = [
 ]
 REPO = Path(__file__).resolve().parents[2]
 BOARD_FILE = REPO / "boards" / "coffeebot-v1.toml"
-# Screenshots land in test-artifacts/ (ignored by git); `make screenshots` refreshes the
-# README's copies in docs/screenshots/ by pointing this at them.
+# The browser tests on the simulated robot save screenshots here (ignored by git);
+# `make screenshots` refreshes the README's copies in docs/screenshots/ by pointing it there.
 SCREENSHOTS = Path(os.environ.get("COFFEEBOT_SCREENSHOTS", REPO / "test-artifacts" / "screenshots"))
 
 
@@ -173,8 +173,6 @@ async def test_order_through_the_form_and_watch_it_live(
     await expect(page.locator("#pickup")).to_be_hidden()
     report(OrderStatus.ARRIVED)
     await expect(page.locator("#status-text")).to_have_text("At your door")
-    SCREENSHOTS.mkdir(parents=True, exist_ok=True)
-    await page.screenshot(path=SCREENSHOTS / "order-status.png")
     async with page.expect_response(lambda r: r.url.endswith("/pickup")) as answer:
         await page.click("#pickup")
     assert (await answer.value).status == 202
@@ -230,7 +228,5 @@ async def test_inspector_shows_topics_updating_and_the_robot_on_the_map(
     await page.dispatch_event("#token", "change")
     await page.click("#estop")
     await expect(page.locator("#estop-state")).to_have_text(re.compile("ENGAGED"))
-    SCREENSHOTS.mkdir(parents=True, exist_ok=True)
-    await page.screenshot(path=SCREENSHOTS / "inspector.png", full_page=True)
     await page.click("#resume")
     await expect(page.locator("#estop-state")).to_have_text("released")
