@@ -1,44 +1,56 @@
-"""Web load benchmark: the order API and the inspector stream, loaded from a second process.
+"""Web load benchmark: the order API and the inspector stream, loaded from a second process
+while the simulated robot drives.
 
-The daemon (orders + web modules on a real board, SQLite store in a temporary directory) runs
-in this process on 127.0.0.1; each load phase runs ``python bench/web.py --client ...`` as a
-child process, bounded by a request count and a time limit, and reports latencies back as
+The server under load is the whole daemon on the simulated robot (``build_sim`` with the web
+server on: drivers on the simulated buses, collision, perception, state, navigation, motion,
+orders, web), at ``--speed 1``, running a scenario (default ``scenarios/floor2-far.toml``)
+whose order staff load so the robot drives down the hallway. The load phases start once the
+order is on its way. Each phase runs ``python bench/web.py --client ...`` as a child process
+on 127.0.0.1, bounded by a request count and a time limit, which reports latencies back as
 JSON. Latency ratios are against ``GET /healthz`` measured in the same run.
 
-Control-loop deadlines: until the simulated robot is merged, a stand-in board load runs next
-to the server: a 50 Hz publisher on ``tof/scan`` and a subscriber that makes a trivial
-decision per scan. A scan whose decision comes later than one scan period after its
-scheduled time is a missed deadline, as the collision loop would count it.
+Control-loop deadlines are measured on the real loop: every ``tof/scan`` envelope and every
+``safety/collision`` verdict is noted as it is published (board clock stamps), and the verdict
+is matched to its scan by ``scan_seq``. A scan whose verdict was published more than one scan
+period after the scan's stamp, or that never got a verdict, is a missed deadline. The
+simulation's pacer, which slows the clock when the machine falls behind, is held at 1.0 for
+the run: on the robot time does not slow down, so the stamps stay wall-clock time.
 
-Usage: ``.venv/bin/python bench/web.py [--requests 2000] [--seconds 10] [--streams 20]``
+Usage: ``.venv/bin/python bench/web.py [--requests 2000] [--seconds 10] [--streams 20]
+[--scenario scenarios/floor2-far.toml]``
 """
 
 from __future__ import annotations
 
 import argparse
 import asyncio
-import contextlib
 import json
+import math
 import sys
-import tempfile
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 from urllib.parse import urlsplit
 
 import aiohttp
 
 from coffeebot.board import Board
-from coffeebot.config import WebConfig
-from coffeebot.daemon import Daemon
-from coffeebot.messages import ALL_TOPICS, RANGE_SCAN, RangeReading, RangeScan, ReadingStatus
-from coffeebot.modules.orders import OrdersModule
+from coffeebot.clock import ScaledClock
+from coffeebot.config import load_robot_config
+from coffeebot.messages import COLLISION, ORDER_UPDATE, RANGE_SCAN, OrderStatus
+from coffeebot.modules.base import Module, ModuleContext
 from coffeebot.modules.web import WebModule
-from coffeebot.store import NewOrder, OrderRules, OrderStore
-from coffeebot.web import RoomChoice, WebDeps
+from coffeebot.runtime import Runtime, build_sim, serve
+from coffeebot.sim.scenario import ScenarioModule, Staff, load_scenario
 
-SCAN_HZ = 50.0
+ROOT = Path(__file__).resolve().parents[1]
+BOARD = ROOT / "boards" / "coffeebot-v1.toml"
+SCENARIO = ROOT / "scenarios" / "floor2-far.toml"
 ORDER = {"room": "210", "drink": "latte", "name": "Bench", "notes": "load test"}
+SETTLE_S = 0.5
+"""After a phase, how long to wait for the verdicts of its last scans."""
 
 
 # --- client side (the child process) -------------------------------------------------------
@@ -87,9 +99,12 @@ async def load(
     connector = aiohttp.TCPConnector(limit=concurrency + streams)
     async with aiohttp.ClientSession(connector=connector) as session:
         readers = [asyncio.create_task(reader(session)) for _ in range(streams)]
+        print("go", flush=True)  # the server side starts its measurement window here
+        cpu = time.process_time()
         began = time.perf_counter()
         await asyncio.gather(*(worker(session) for _ in range(concurrency)))
         elapsed = time.perf_counter() - began
+        cpu = time.process_time() - cpu
         for task in readers:
             task.cancel()
         await asyncio.gather(*readers, return_exceptions=True)
@@ -100,50 +115,55 @@ async def load(
         "p50_ms": percentile(latencies, 0.50) * 1e3,
         "p99_ms": percentile(latencies, 0.99) * 1e3,
         "frames_per_s": frames / elapsed,
+        "cpu_pct": 100 * cpu / elapsed,
     }
 
 
 # --- server side ---------------------------------------------------------------------------
 
 
-@dataclass
-class ScanLoad:
-    """The control-loop stand-in: 50 Hz scans and a subscriber that checks its deadline."""
+class LoopTap:
+    """Notes every scan and every collision verdict as the board publishes them.
 
-    board: Board
-    period_s: float = 1.0 / SCAN_HZ
-    scans: int = 0
-    missed: int = 0
-    lateness_ms: list[float] = field(default_factory=list)
-    stop: bool = False
-    last_seq: int = 0
+    Wraps this board's ``publish`` so nothing depends on a subscriber being scheduled in
+    time: the stamps are the board's own envelope stamps."""
 
-    def reset(self) -> None:
-        self.scans = self.missed = 0
-        self.lateness_ms.clear()
+    def __init__(self, board: Board) -> None:
+        self.scans: dict[int, float] = {}
+        """scan envelope seq -> stamp"""
+        self.verdicts: dict[int, float] = {}
+        """scan_seq -> stamp of the first verdict for that scan"""
+        publish = board.publish
 
-    async def publish(self) -> None:
-        readings = [
-            RangeReading(sensor=i, status=ReadingStatus.VALID, distance_mm=900) for i in range(8)
-        ]
-        due = time.perf_counter()
-        while True:
-            due += self.period_s
-            await asyncio.sleep(max(0.0, due - time.perf_counter()))
-            scan = RangeScan(cycle_start_s=due, cycle_time_s=0.02, readings=readings)
-            self.board.publish(RANGE_SCAN, scan)
+        def tapped(topic: Any, msg: Any) -> Any:
+            envelope = publish(topic, msg)
+            if envelope.topic == RANGE_SCAN.name:
+                self.scans[envelope.seq] = envelope.stamp
+            elif envelope.topic == COLLISION.name:
+                self.verdicts.setdefault(envelope.msg.scan_seq, envelope.stamp)
+            return envelope
 
-    async def decide(self) -> None:
-        with self.board.subscribe(RANGE_SCAN, name="deadline-probe") as scans:
-            async for envelope in scans:
-                self.stop = min(r.distance_mm or 0 for r in envelope.msg.readings) < 200
-                late = time.perf_counter() - envelope.msg.cycle_start_s
-                self.scans += 1
-                self.lateness_ms.append(late * 1e3)
-                # LATEST delivery drops scans a slow reader never saw: those are missed too.
-                skipped = envelope.seq - self.last_seq - 1 if self.last_seq else 0
-                self.last_seq = envelope.seq
-                self.missed += int(late > self.period_s) + skipped
+        board.publish = tapped  # type: ignore[method-assign]
+
+    def window(self, start: float, end: float, period_s: float) -> dict[str, float]:
+        """Scans stamped in ``[start, end)``: count, rate, missed deadlines, latency p99."""
+        stamps = [(seq, t) for seq, t in self.scans.items() if start <= t < end]
+        latencies = []
+        missed = 0
+        for seq, t in stamps:
+            verdict = self.verdicts.get(seq)
+            if verdict is None or verdict - t > period_s:
+                missed += 1
+            if verdict is not None:
+                latencies.append(verdict - t)
+        return {
+            "scans": len(stamps),
+            "scan_hz": len(stamps) / (end - start),
+            "missed": missed,
+            "no_verdict": sum(1 for seq, _ in stamps if seq not in self.verdicts),
+            "latency_p99_ms": percentile(latencies, 0.99) * 1e3,
+            "latency_max_ms": max(latencies, default=math.nan) * 1e3,
+        }
 
 
 @dataclass
@@ -155,10 +175,22 @@ class Phase:
     streams: int = 0
 
 
-Row = tuple[Phase, dict[str, float], int, int, float]
+@dataclass
+class Row:
+    phase: Phase
+    load: dict[str, float]
+    loop: dict[str, float]
+    cpu_pct: float
+    """this process (daemon and simulated world) over the phase's wall time"""
+    world_pct: float
+    client_pct: float
+    driven_m: float
 
 
-async def run_phase(url: str, phase: Phase, requests: int, seconds: float) -> dict[str, float]:
+async def run_phase(
+    url: str, phase: Phase, requests: int, seconds: float, started: Callable[[], None]
+) -> dict[str, float]:
+    """One load phase in a child process; ``started`` is called when its load begins."""
     child = await asyncio.create_subprocess_exec(
         sys.executable,
         __file__,
@@ -176,36 +208,48 @@ async def run_phase(url: str, phase: Phase, requests: int, seconds: float) -> di
         str(phase.streams),
         stdout=asyncio.subprocess.PIPE,
     )
+    assert child.stdout is not None
+    if await child.stdout.readline() == b"go\n":
+        started()
     out, _ = await child.communicate()
     if child.returncode != 0:
-        raise SystemExit(f"load phase {phase.label!r} failed")
+        raise RuntimeError(f"load phase {phase.label!r} failed")
     return json.loads(out)
 
 
-async def serve_and_measure(requests: int, seconds: float, streams: int) -> None:
-    board = Board(ALL_TOPICS)
-    with tempfile.TemporaryDirectory() as tmp:
-        store = OrderStore(Path(tmp) / "orders.sqlite3")
-        orders = OrdersModule(store)
-        config = WebConfig(port=0, drinks=["latte"], order_burst=10**9, stream_period_s=0.1)
-        web = WebModule(
-            WebDeps(
-                board=board,
-                bus=board,
-                orders=orders,
-                rooms=[RoomChoice(id="210", floor=2)],
-                config=config,
-                modules=[orders],
-            )
-        )
-        daemon = Daemon(board, [orders, web])
-        await daemon.start()
+@dataclass
+class LoadBench(Module):
+    """Waits until the order is on its way, then runs the load phases and ends the run."""
+
+    runtime: Runtime
+    tap: LoopTap
+    requests: int
+    seconds: float
+    streams: int
+    period_s: float
+    rows: list[Row] = field(default_factory=list)
+    error: str = ""
+    name = "web-bench"
+    inputs = (ORDER_UPDATE,)
+
+    async def run(self, ctx: ModuleContext) -> None:
+        try:
+            await self._run(ctx)
+        except Exception as exc:  # a failed phase ends the run with its reason, not a restart
+            self.error = f"{type(exc).__name__}: {exc}"
+        self.runtime.request_stop("web benchmark done")
+
+    async def _run(self, ctx: ModuleContext) -> None:
+        runtime = self.runtime
+        web = runtime.module("web")
+        assert isinstance(web, WebModule)
         await web.started.wait()
         assert web.url is not None
-        scan_load = ScanLoad(board)
-        tasks = [asyncio.create_task(scan_load.publish()), asyncio.create_task(scan_load.decide())]
-        rules = OrderRules(rooms={"210"}, drinks={"latte"})
-        first = await orders.place(NewOrder.model_validate(ORDER, context=rules), client="bench")
+        with ctx.board.subscribe(ORDER_UPDATE) as updates:
+            async for update in updates:
+                if update.msg.status is OrderStatus.ON_THE_WAY:
+                    break
+        first = (await runtime.store.with_status(list(OrderStatus)))[0]
         phases = [
             Phase("GET /healthz (baseline)", "/healthz"),
             Phase("POST /api/orders, 1 client", "/api/orders", "POST", concurrency=1),
@@ -213,58 +257,130 @@ async def serve_and_measure(requests: int, seconds: float, streams: int) -> None
             Phase("GET /api/orders/{id}", f"/api/orders/{first.id}"),
             Phase("GET /api/board (snapshot)", "/api/board"),
             Phase(
-                f"POST /api/orders + {streams} inspector streams",
+                f"POST /api/orders + {self.streams} inspector streams",
                 "/api/orders",
                 "POST",
-                streams=streams,
+                streams=self.streams,
             ),
         ]
-        rows: list[Row] = []
-        try:
-            for phase in phases:
-                scan_load.reset()
-                result = await run_phase(web.url, phase, requests, seconds)
-                rows.append(
-                    (
-                        phase,
-                        result,
-                        scan_load.scans,
-                        scan_load.missed,
-                        percentile(scan_load.lateness_ms, 0.99),
-                    )
-                )
-        finally:
-            for task in tasks:
-                task.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await asyncio.gather(*tasks)
-            await daemon.shutdown()
-            store.close()
-    print_table(rows, requests, seconds, streams)
+        for phase in phases:
+            self.rows.append(await self.measure(ctx, web.url, phase))
+
+    async def measure(self, ctx: ModuleContext, url: str, phase: Phase) -> Row:
+        sim = self.runtime.sim
+        assert sim is not None
+        clock = ctx.clock
+
+        def sample() -> tuple[float, float, float, float, tuple[float, float]]:
+            with sim.lock:
+                world, pose = sim.cpu_s, (sim.world.pose.x_mm, sim.world.pose.y_mm)
+            return clock.now(), time.monotonic(), time.process_time(), world, pose
+
+        samples = []
+        load = await run_phase(
+            url, phase, self.requests, self.seconds, lambda: samples.append(sample())
+        )
+        after = sample()
+        if not samples:
+            raise RuntimeError(f"load phase {phase.label!r} never started")
+        before = samples[0]
+        await clock.sleep(SETTLE_S)
+        wall = after[1] - before[1]
+        return Row(
+            phase,
+            load,
+            self.tap.window(before[0], after[0], self.period_s),
+            cpu_pct=100 * (after[2] - before[2]) / wall,
+            world_pct=100 * (after[3] - before[3]) / wall,
+            client_pct=load["cpu_pct"],
+            driven_m=math.dist(before[4], after[4]) / 1000,
+        )
 
 
-def print_table(rows: list[Row], requests: int, seconds: float, streams: int) -> None:
-    base = rows[0][1]
+async def serve_and_measure(
+    requests: int, seconds: float, streams: int, scenario_path: Path
+) -> None:
+    scenario, plan = load_scenario(scenario_path)
+    # Nobody takes the cup (the run must not end at the door) and the bench ends the run.
+    scenario = scenario.model_copy(
+        update={
+            "time_limit_s": 3600.0,
+            "staff": Staff(load_after_s=scenario.staff.load_after_s, pickup_after_s=None),
+        }
+    )
+    config = scenario.apply_limits(load_robot_config(BOARD))
+    web = config.web.model_copy(
+        update={"host": "127.0.0.1", "port": 0, "order_burst": 10**9, "stream_period_s": 0.1}
+    )
+    config = config.model_copy(update={"web": web})
+    tof = config.tof
+    period_s = 1.0 / tof.scan_rate_hz if tof.scan_rate_hz else tof.timing_budget_ms / 1000.0
+    bench: list[LoadBench] = []
+
+    def add(runtime: Runtime) -> list[Module]:
+        assert runtime.sim is not None
+        clock = runtime.board.clock
+        assert isinstance(clock, ScaledClock)
+        clock.set_rate = lambda rate: None  # type: ignore[method-assign]
+        driver = ScenarioModule(
+            scenario, plan, runtime.config, runtime.sim, runtime.orders, runtime.request_stop
+        )
+        tap = LoopTap(runtime.board)
+        bench.append(LoadBench(runtime, tap, requests, seconds, streams, period_s))
+        return [driver, bench[0]]
+
+    async with build_sim(config, plan, scenario.setup(1.0), add, web=True) as runtime:
+        await serve(runtime)
+    if bench[0].error or not bench[0].rows:
+        raise SystemExit(f"benchmark failed: {bench[0].error or 'the run ended first'}")
+    print_table(
+        bench[0].rows,
+        requests,
+        seconds,
+        scenario.name,
+        period_s,
+    )
+
+
+def print_table(
+    rows: list[Row], requests: int, seconds: float, scenario: str, period_s: float
+) -> None:
+    base = rows[0].load
     print(
         f"# bench/web.py: loopback, load from a second process, <= {requests} requests or "
         f"{seconds:.0f} s per phase; SQLite synchronous=FULL"
     )
     print(
-        "# control loop: STAND-IN (50 Hz tof/scan publisher + deadline-probe subscriber on the"
-        " board) until the simulated robot is merged"
+        f"# server: whole daemon on the simulated robot, scenario {scenario!r}, --speed 1 "
+        f"(board clock held at real time); deadline = one scan period ({period_s * 1e3:.0f} ms), "
+        "scan stamp -> collision verdict stamp"
     )
     print()
     print(
         "| phase | requests | failed | req/s | p50 ms | p99 ms | p50 x baseline | "
-        "stream frames/s | scans | missed deadlines | scan lateness p99 ms |"
+        "stream frames/s | scans | scan Hz | missed deadlines | scan->verdict p99 ms | max ms | "
+        "driven m | daemon CPU % | world CPU % | load CPU % |"
     )
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
-    for phase, r, scans, missed, late99 in rows:
+    print("|---|" + "---:|" * 16)
+    for row in rows:
+        r, loop = row.load, row.loop
+        missed = f"{loop['missed']:.0f}"
+        if loop["no_verdict"]:
+            missed += f" ({loop['no_verdict']:.0f} without verdict)"
         print(
-            f"| {phase.label} | {r['requests']:.0f} | {r['failures']:.0f} | {r['rps']:.0f} | "
+            f"| {row.phase.label} | {r['requests']:.0f} | {r['failures']:.0f} | {r['rps']:.0f} | "
             f"{r['p50_ms']:.2f} | {r['p99_ms']:.2f} | {r['p50_ms'] / base['p50_ms']:.1f} | "
-            f"{r['frames_per_s']:.1f} | {scans} | {missed} | {late99:.2f} |"
+            f"{r['frames_per_s']:.1f} | {loop['scans']:.0f} | {loop['scan_hz']:.1f} | {missed} | "
+            f"{loop['latency_p99_ms']:.2f} | {loop['latency_max_ms']:.1f} | {row.driven_m:.1f} | "
+            f"{row.cpu_pct:.0f} | {row.world_pct:.0f} | {row.client_pct:.0f} |"
         )
+    print()
+    print(
+        "daemon CPU % is this process (robot modules, web server and the simulated world) over"
+        " the phase's wall time, 100 % = one core; world CPU % is the part inside the"
+        " simulated world (Simulation.cpu_s), which the robot does not pay; load CPU % is the"
+        " load generator (the child process)."
+    )
 
 
 def main() -> None:
@@ -272,6 +388,7 @@ def main() -> None:
     parser.add_argument("--requests", type=int, default=2000)
     parser.add_argument("--seconds", type=float, default=10.0)
     parser.add_argument("--streams", type=int, default=20)
+    parser.add_argument("--scenario", type=Path, default=SCENARIO)
     parser.add_argument("--client", help=argparse.SUPPRESS)
     parser.add_argument("--method", default="GET", help=argparse.SUPPRESS)
     parser.add_argument("--concurrency", type=int, default=8, help=argparse.SUPPRESS)
@@ -289,7 +406,7 @@ def main() -> None:
         )
         print(json.dumps(result))
     else:
-        asyncio.run(serve_and_measure(args.requests, args.seconds, args.streams))
+        asyncio.run(serve_and_measure(args.requests, args.seconds, args.streams, args.scenario))
 
 
 if __name__ == "__main__":
