@@ -17,6 +17,7 @@ from coffeebot.store import NewOrder, Order, OrderRules
 from coffeebot.web.context import (
     CHANGES,
     DEPS,
+    FRAMES,
     LIMITER,
     client_key,
     is_operator,
@@ -24,7 +25,6 @@ from coffeebot.web.context import (
 )
 from coffeebot.web.live import (
     HEARTBEAT_S,
-    inspector_frame,
     open_event_stream,
     send_event,
     sleep_unless_closed,
@@ -168,8 +168,7 @@ async def order_events(request: web.Request) -> web.StreamResponse:
 
 @routes.get("/api/board")
 async def board_snapshot(request: web.Request) -> web.Response:
-    frame = inspector_frame(request.app[DEPS])
-    return web.json_response(text=frame.model_dump_json())
+    return web.json_response(text=request.app[FRAMES].json())
 
 
 @routes.get("/api/board/stream")
@@ -178,9 +177,9 @@ async def board_stream(request: web.Request) -> web.StreamResponse:
     deps = request.app[DEPS]
     changes = request.app[CHANGES]
     response = await open_event_stream(request)
+    frames = request.app[FRAMES]
     while not changes.closed.is_set():
-        frame = inspector_frame(deps)
-        if not await send_event(response, frame.model_dump_json()):
+        if not await send_event(response, frames.json()):
             break
         await sleep_unless_closed(changes, deps.config.stream_period_s)
     return response

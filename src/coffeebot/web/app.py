@@ -17,9 +17,17 @@ from aiohttp import web
 
 from coffeebot.modules.orders import OrderError
 from coffeebot.web import api, pages
-from coffeebot.web.context import CHANGES, DEPS, LIMITER, TEMPLATES, RateLimiter, error
+from coffeebot.web.context import (
+    CHANGES,
+    DEPS,
+    FRAMES,
+    LIMITER,
+    TEMPLATES,
+    RateLimiter,
+    error,
+)
 from coffeebot.web.deps import WebDeps
-from coffeebot.web.live import Changes
+from coffeebot.web.live import Changes, FrameCache
 
 log = logging.getLogger(__name__)
 
@@ -70,6 +78,7 @@ def create_app(deps: WebDeps) -> web.Application:
     )
     app[DEPS] = deps
     app[CHANGES] = Changes()
+    app[FRAMES] = FrameCache(deps, max_age_s=deps.config.stream_period_s / 2)
     app[LIMITER] = RateLimiter(
         deps.config.order_burst, deps.config.order_refill_s, deps.board.clock
     )

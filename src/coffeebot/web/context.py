@@ -11,7 +11,7 @@ from pydantic import ValidationError
 
 from coffeebot.clock import Clock
 from coffeebot.web.deps import WebDeps
-from coffeebot.web.live import Changes
+from coffeebot.web.live import Changes, FrameCache
 
 
 class RateLimiter:
@@ -46,6 +46,7 @@ class RateLimiter:
 
 DEPS = web.AppKey("deps", WebDeps)
 CHANGES = web.AppKey("changes", Changes)
+FRAMES = web.AppKey("frames", FrameCache)
 LIMITER = web.AppKey("limiter", RateLimiter)
 TEMPLATES = web.AppKey("templates", jinja2.Environment)
 

@@ -99,6 +99,25 @@ def inspector_frame(deps: WebDeps) -> InspectorFrame:
     )
 
 
+class FrameCache:
+    """One serialised inspector frame, shared by every stream and snapshot within
+    ``max_age_s``: twenty open inspectors cost the event loop one frame, not twenty, so they
+    cannot crowd out the control loop that shares it."""
+
+    def __init__(self, deps: WebDeps, max_age_s: float) -> None:
+        self.deps = deps
+        self.max_age_s = max_age_s
+        self._json: str | None = None
+        self._at = 0.0
+
+    def json(self) -> str:
+        now = self.deps.board.clock.now()
+        if self._json is None or now - self._at >= self.max_age_s:
+            self._json = inspector_frame(self.deps).model_dump_json()
+            self._at = now
+        return self._json
+
+
 async def open_event_stream(request: web.Request) -> web.StreamResponse:
     response = web.StreamResponse(
         headers={"Content-Type": "text/event-stream", "Cache-Control": "no-cache"}
