@@ -9,6 +9,8 @@ then combines what the daemon did with what only the simulator knows (collisions
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -202,23 +204,34 @@ class ScenarioModule(Module):
         self.log = RunLog([OrderTrack(spec) for spec in scenario.orders])
 
     async def run(self, ctx: ModuleContext) -> None:
-        with (
-            ctx.board.subscribe(COLLISION) as verdicts,
-            ctx.board.subscribe(ORDER_UPDATE) as updates,
-        ):
+        # Verdicts come 50 times a second on a "latest" topic: a poll would miss a stop that
+        # lasts one scan, so a task of its own reads every one as it is published.
+        watching = asyncio.create_task(self._watch_safety(ctx), name="scenario:safety")
+        try:
+            await self._drive(ctx)
+        finally:
+            watching.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await watching
+
+    async def _watch_safety(self, ctx: ModuleContext) -> None:
+        previous = SafetyState.STOP  # the collision module starts in "stop"
+        with ctx.board.subscribe(COLLISION) as verdicts:
+            async for verdict in verdicts:
+                state = verdict.msg.state
+                if state is SafetyState.STOP and previous is not SafetyState.STOP:
+                    self.log.safety_stops.append(
+                        SafetyStop(self.sim.t_s, verdict.msg.reason, verdict.msg.sensor)
+                    )
+                previous = state
+
+    async def _drive(self, ctx: ModuleContext) -> None:
+        with ctx.board.subscribe(ORDER_UPDATE) as updates:
             pending = sorted(self.log.orders, key=lambda o: o.spec.at_s)
-            previous = SafetyState.STOP  # the collision module starts in "stop"
             while True:
                 t = self.sim.t_s
                 while pending and pending[0].spec.at_s <= t:
                     await self._place(pending.pop(0))
-                while (verdict := verdicts.get_nowait()) is not None:
-                    state = verdict.msg.state
-                    if state is SafetyState.STOP and previous is not SafetyState.STOP:
-                        self.log.safety_stops.append(
-                            SafetyStop(t, verdict.msg.reason, verdict.msg.sensor)
-                        )
-                    previous = state
                 while (update := updates.get_nowait()) is not None:
                     self._order_update(update.msg.order_id, update.msg.status, update.msg.detail)
                 self._people(ctx, t)
