@@ -218,6 +218,12 @@ class StateConfig(Section):
     door_sigma_mm: float = Field(40.0, gt=0, description="1-sigma of a matched door landmark")
     wall_sigma_mm: float = Field(30.0, gt=0, description="1-sigma of a wall-distance fix")
     publish_hz: float = Field(20.0, gt=0)
+    speed_window_s: float = Field(
+        0.1,
+        gt=0,
+        description="speed and yaw rate are averaged over this much odometry: one telemetry "
+        "step is a few ticks and a jittery time stamp, too coarse to size the door window",
+    )
 
 
 class MotionConfig(Section):

@@ -7,6 +7,9 @@ module publishes only when there is something new.
 
 from __future__ import annotations
 
+from collections import deque
+from collections.abc import Callable
+
 from coffeebot.config import MotorConfig, StateConfig
 from coffeebot.floorplan import FloorPlan
 from coffeebot.messages import (
@@ -42,7 +45,7 @@ class StateEstimator:
         self.fusion: PoseFusion = fusion or EkfPoseFusion(cfg)
         self.floor = cfg.initial_floor
         self._anchor_floor = {a.id: f.level for f in plan.floors for a in f.anchors}
-        self._last_step = OdometryStep(0.0, 0.0, 0.0)
+        self._recent: deque[OdometryStep] = deque()
         self.angle_from_line_deg: float | None = None
         self.move_instruction: MoveInstruction | None = None
         self.order_id: str | None = None
@@ -59,7 +62,10 @@ class StateEstimator:
         step = self.odometer.step(odo)
         if step is None:
             return False
-        self._last_step = step
+        self._recent.append(step)
+        span = sum(s.dt_s for s in self._recent)
+        while span - self._recent[0].dt_s >= self.cfg.speed_window_s:
+            span -= self._recent.popleft().dt_s
         self.stamps["odometry"] = now
         if self.fusion.initialised:
             self.fusion.predict(step)
@@ -114,6 +120,11 @@ class StateEstimator:
         if update.order_id == self.order_id:
             self.delivery_status = update
 
+    def _average(self, per_step: Callable[[OdometryStep], float]) -> float:
+        """Rate of ``per_step`` over the recent odometry window."""
+        span = sum(s.dt_s for s in self._recent)
+        return sum(per_step(s) for s in self._recent) / span if span > 0 else 0.0
+
     def pose(self) -> PoseEstimate:
         x, y, heading = self.fusion.pose()
         sx, sy, sh = self.fusion.sigmas()
@@ -125,8 +136,8 @@ class StateEstimator:
             sigma_x_mm=sx,
             sigma_y_mm=sy,
             sigma_heading_deg=sh,
-            speed_mm_s=self._last_step.speed_mm_s,
-            yaw_rate_dps=self._last_step.yaw_rate_dps,
+            speed_mm_s=self._average(lambda s: s.distance_mm),
+            yaw_rate_dps=self._average(lambda s: s.heading_change_deg),
             initialised=self.fusion.initialised,
         )
 
