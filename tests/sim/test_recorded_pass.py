@@ -51,8 +51,9 @@ SPEED = 4.0
 """Clock speed-up; docs/scenarios.md ("Speed"): scans stay near their real rate up to 4x."""
 LANE_MM = -295.0
 """Keeping right (the even rooms' side), as the scenarios do."""
-START_S_MM, END_S_MM = 34_500.0, 39_800.0
-"""Past door 212 (right, 36 m) and door 213 (left, 39 m) on floor 2."""
+START_S_MM, END_S_MM = 34_500.0, 41_000.0
+"""Past door 212 (right, 36 m) and door 213 (left, 39 m) on floor 2, and on for as far again
+as the door detector needs to see each door's far edge (it reports a door from both edges)."""
 CRUISE_MM_S = 500.0
 DOOR_INPUTS = [RANGE_SCAN, CURRENT_STATE, ORDER_DISPATCH, MOVE_INSTRUCTION]
 """What the door module reads; its output (``perception/door``) is not replayed."""
