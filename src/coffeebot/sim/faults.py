@@ -8,6 +8,7 @@ its real drivers, exactly as it would on the robot.
 from __future__ import annotations
 
 import random
+from abc import abstractmethod
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Annotated, Literal
 
@@ -59,17 +60,17 @@ class _Fault(BaseModel):
             self._record.cleared_s = t
         return None
 
-    def describe(self) -> str:
-        raise NotImplementedError
+    @abstractmethod
+    def describe(self) -> str: ...
 
-    def begin(self, sim: Simulation) -> None:
-        raise NotImplementedError
+    @abstractmethod
+    def begin(self, sim: Simulation) -> None: ...
 
     def during(self, sim: Simulation) -> None:
         """Called on every world step while the fault lasts."""
 
-    def end(self, sim: Simulation) -> None:
-        raise NotImplementedError
+    @abstractmethod
+    def end(self, sim: Simulation) -> None: ...
 
 
 class SensorNack(_Fault):

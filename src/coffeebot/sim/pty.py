@@ -14,11 +14,12 @@ import tempfile
 import threading
 import time
 import tty
+from abc import ABC, abstractmethod
 from collections.abc import Callable
 from pathlib import Path
 
 
-class PtyDevice:
+class PtyDevice(ABC):
     """Base class: a thread that feeds received bytes to :meth:`on_data` and calls
     :meth:`on_tick` every ``tick_s``. Subclasses speak the protocol."""
 
@@ -97,14 +98,14 @@ class PtyDevice:
             with contextlib.suppress(OSError):  # BlockingIOError: the buffer is full
                 os.write(self._master, data)
 
-    def on_plugged(self) -> None:
+    def on_plugged(self) -> None:  # noqa: B027 - an optional hook, empty by default
         """Called when the device is (re)connected, before any byte is exchanged."""
 
-    def on_data(self, data: bytes) -> None:
-        raise NotImplementedError
+    @abstractmethod
+    def on_data(self, data: bytes) -> None: ...
 
-    def on_tick(self, now: float) -> None:
-        raise NotImplementedError
+    @abstractmethod
+    def on_tick(self, now: float) -> None: ...
 
     def _serve(self) -> None:
         while not self._stop.is_set():
