@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 from helpers import CONFIG, PLAN
 
-from coffeebot.board import Board, Envelope
+from coffeebot.board import Board
 from coffeebot.daemon import Daemon
 from coffeebot.messages import (
     ALL_TOPICS,
@@ -131,28 +131,3 @@ def test_gate_prefers_stop_on_any_doubt() -> None:
     assert safety_gate(None, None, None, None, 0.2).stop
     assert safety_gate(None, None, EStop(engaged=True, source="x"), HealthStatus.RUNNING, 0.2).stop
     assert safety_gate(None, None, None, HealthStatus.RESTARTING, 0.2).stop
-
-
-def test_gate_passes_on_a_verdict_that_allows_turning_and_nothing_else() -> None:
-    stop = CollisionStatus(
-        state=SafetyState.STOP,
-        scan_seq=3,
-        reason="front narrow obstacle",
-        blocked_faces=("front",),
-        front_clearance_mm=400,
-        may_rotate=True,
-    )
-    fresh = safety_gate(Envelope("safety/collision", 3, 0.0, stop), 0.05, None, None, 0.2)
-    assert fresh.stop and fresh.may_rotate
-    # Stale, an e-stop or a failed collision module: no turning either.
-    assert not safety_gate(
-        Envelope("safety/collision", 3, 0.0, stop), 1.0, None, None, 0.2
-    ).may_rotate
-    estop = EStop(engaged=True, source="x")
-    assert not safety_gate(
-        Envelope("safety/collision", 3, 0.0, stop), 0.05, estop, None, 0.2
-    ).may_rotate
-    failed = HealthStatus.FAILED
-    assert not safety_gate(
-        Envelope("safety/collision", 3, 0.0, stop), 0.05, None, failed, 0.2
-    ).may_rotate

@@ -50,8 +50,6 @@ class Gate:
 
     speed_limit_mm_s: float
     reason: str
-    may_rotate: bool = False
-    """Stopped, but the collision verdict allows turning on the spot (see CollisionStatus)."""
 
     @property
     def stop(self) -> bool:
@@ -76,18 +74,10 @@ def safety_gate(
         return Gate(0.0, f"collision verdict {collision_age_s:.2f} s old")
     verdict = collision.msg
     if verdict.state is SafetyState.STOP:
-        return Gate(0.0, f"collision stop: {verdict.reason}", may_rotate=verdict.may_rotate)
+        return Gate(0.0, f"collision stop: {verdict.reason}")
     if verdict.state is SafetyState.SLOW:
         return Gate(verdict.speed_limit_mm_s, f"slow: {verdict.reason}")
     return Gate(verdict.speed_limit_mm_s or float("inf"), "clear")
-
-
-def front_stop_mm(config: RobotConfig) -> float:
-    """The collision module's widest front stop distance from standstill, hysteresis
-    included: a box at the edge of the lane is seen by one or two front sensors only, so it
-    counts as narrow and gets the narrow margin."""
-    collision = config.collision
-    return collision.front_radius_mm + collision.hysteresis_mm + collision.narrow_margin_mm
 
 
 class MotionModule(Module):
@@ -105,15 +95,18 @@ class MotionModule(Module):
             config.geometry.length_mm,
             config.geometry.width_mm,
             # Keep the collision module's front stop distance free, so going round never
-            # trips it: its widest stop from standstill less the clearance kept anyway.
-            front_extra_mm=max(0.0, front_stop_mm(config) - config.motion.obstacle_clearance_mm),
+            # trips it: its radius (and hysteresis) less the clearance kept anyway.
+            front_extra_mm=max(
+                0.0,
+                config.collision.front_radius_mm
+                + config.collision.hysteresis_mm
+                - config.motion.obstacle_clearance_mm,
+            ),
         )
         self.costmap = LocalCostmap(
             self.cfg, config.tof.sensors, self.footprint, config.tof.effective_half_fov_deg
         )
-        self.controller = MotionController(
-            self.cfg, plan, self.costmap, self.footprint, front_stop_mm(config)
-        )
+        self.controller = MotionController(self.cfg, plan, self.costmap, self.footprint)
         self.collision_health: HealthStatus | None = None
         self._board: ModuleBoard | None = None
         self._stopping = False
@@ -174,21 +167,7 @@ class MotionModule(Module):
             gate = Gate(0.0, "shutting down")
         if gate.stop or state is None:
             self.controller.halt()
-            rate = 0.0
-            if gate.may_rotate and state is not None and ins is not None:
-                rate = self.controller.turn_away(ins, state.msg.pose, now)
-            if rate == 0.0:
-                self._stop(ctx.board, gate.reason)
-            else:
-                left, right = wheel_speeds(0.0, rate, self.config.motor.wheel_base_mm)
-                ctx.board.publish(
-                    MOTOR_COMMAND,
-                    MotorCommand(
-                        left_mm_s=left,
-                        right_mm_s=right,
-                        reason=f"turning away on the spot; {gate.reason}",
-                    ),
-                )
+            self._stop(ctx.board, gate.reason)
             ctx.board.publish(
                 MOTION_STATUS,
                 self.controller.safety_status(-1 if ins is None else ins.id, now, gate.reason),

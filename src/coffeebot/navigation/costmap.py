@@ -198,16 +198,9 @@ class LocalCostmap:
     # --- cost queries ----------------------------------------------------------------------
 
     def obstacle_gaps(
-        self,
-        xs: np.ndarray,
-        ys: np.ndarray,
-        thetas: np.ndarray,
-        now: float,
-        footprint: Footprint | None = None,
+        self, xs: np.ndarray, ys: np.ndarray, thetas: np.ndarray, now: float
     ) -> np.ndarray:
-        """For each pose, the smallest gap between the body (``footprint``, by default the
-        planner's extended one) and an obstacle cell (inf: none)."""
-        footprint = footprint or self.footprint
+        """For each pose, the smallest gap between the body and an obstacle cell (inf: none)."""
         ox, oy, _ = self.obstacles(now)
         if ox.size == 0:
             return np.full(np.shape(xs), math.inf)
@@ -215,25 +208,8 @@ class LocalCostmap:
         dy = oy[None, :] - np.ravel(ys)[:, None]
         c, s = np.cos(np.ravel(thetas))[:, None], np.sin(np.ravel(thetas))[:, None]
         local_x, local_y = c * dx + s * dy, -s * dx + c * dy
-        gaps = footprint.gap_mm(local_x, local_y).min(axis=1) - self.res / 2.0
+        gaps = self.footprint.gap_mm(local_x, local_y).min(axis=1) - self.res / 2.0
         return gaps.reshape(np.shape(xs))
-
-    def rotation_clear(
-        self, x_mm: float, y_mm: float, headings_deg: np.ndarray, now: float
-    ) -> bool:
-        """Whether the bare body turning on the spot through ``headings_deg`` keeps
-        ``obstacle_clearance_mm`` to every obstacle cell and its corners ``side_clearance_mm``
-        to the plan's walls (a turning rectangle sweeps the circle through its corners)."""
-        cfg, fp = self.cfg, self.footprint
-        body = Footprint(fp.length_mm, fp.width_mm)
-        thetas = np.radians(np.asarray(headings_deg, dtype=float))
-        xs, ys = np.full_like(thetas, x_mm), np.full_like(thetas, y_mm)
-        gaps = self.obstacle_gaps(xs, ys, thetas, now, footprint=body)
-        corner = math.hypot(fp.length_mm / 2.0, fp.width_mm / 2.0)
-        wall = self.wall_distances(np.array([x_mm]), np.array([y_mm]))[0]
-        return bool(np.all(gaps >= cfg.obstacle_clearance_mm)) and (
-            wall >= corner + cfg.side_clearance_mm
-        )
 
     def wall_distances(self, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
         """For each point, the distance from the body centre to the nearest plan wall."""
@@ -242,21 +218,6 @@ class LocalCostmap:
         points_x, points_y = np.ravel(xs)[:, None], np.ravel(ys)[:, None]
         distances = segment_distances(self.floor.segment_array, points_x, points_y)
         return distances.min(axis=1).reshape(np.shape(xs))
-
-    def front_wall_distances(
-        self, xs: np.ndarray, ys: np.ndarray, thetas: np.ndarray
-    ) -> np.ndarray:
-        """For each pose, the distance from the front corners of the extended body to the
-        nearest plan wall: the collision module cannot tell a wall ahead from an obstacle."""
-        fp = self.footprint
-        reach = fp.length_mm / 2.0 + fp.front_extra_mm
-        c, s = np.cos(np.ravel(thetas)), np.sin(np.ravel(thetas))
-        px, py = np.ravel(xs), np.ravel(ys)
-        corners = [
-            self.wall_distances(px + reach * c - side * s, py + reach * s + side * c)
-            for side in (-fp.width_mm / 2.0, fp.width_mm / 2.0)
-        ]
-        return np.minimum(*corners).reshape(np.shape(xs))
 
     def cost(self, obstacle_gap_mm: np.ndarray, wall_distance_mm: np.ndarray) -> np.ndarray:
         """Inflated cost in [0, 1], ``inf`` where the pose is lethal."""

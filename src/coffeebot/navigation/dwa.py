@@ -97,8 +97,7 @@ class DynamicWindow:
         )
         gaps = costmap.obstacle_gaps(xs, ys, theta, now)
         walls = costmap.wall_distances(xs, ys)
-        ahead = costmap.front_wall_distances(xs, ys, theta) >= self.cfg.obstacle_clearance_mm
-        cost = np.where(ahead, costmap.cost(gaps, walls), math.inf)
+        cost = costmap.cost(gaps, walls)
         worst = cost.max(axis=1)
         admissible = np.isfinite(worst)
         here = costmap.obstacle_gaps(np.array([x0]), np.array([y0]), np.array([h0]), now)[0]
@@ -106,7 +105,6 @@ class DynamicWindow:
             # Already inside the lethal zone (the obstacle came closer, or was seen late):
             # arcs that do not close the gap any further may still get out of it.
             wall_ok = np.isfinite(costmap.cost(np.full_like(walls, math.inf), walls)).all(axis=1)
-            wall_ok &= ahead.all(axis=1)
             admissible = wall_ok & (gaps.min(axis=1) >= here - 1.0)
             worst = np.where(admissible, 1.0, math.inf)
         if not admissible.any():

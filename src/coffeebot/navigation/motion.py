@@ -35,15 +35,6 @@ AIM_BEFORE_DRIVING_DEG = 10.0
 AIM_BEFORE_LANE_DEG = 45.0
 """``follow_lane`` facing further than this from the direction of travel turns on the spot."""
 
-TURN_AWAY_DPS = 15.0
-"""Yaw rate of the turn on the spot allowed while a front stop holds the robot."""
-
-TURN_AWAY_MAX_DEG = 45.0
-"""That turn points the front at most this far from the direction of travel."""
-
-TURN_AWAY_SWEEP_S = 1.0
-"""The turn's swept footprint is checked this far ahead in time."""
-
 WAIT_ROOM_MM = 200.0
 """Room left beyond the planner's lethal zone where the robot waits in front of an obstacle,
 so the dynamic window can still turn away from it."""
@@ -60,17 +51,9 @@ class MotionController:
     """Turns the current instruction and pose into a speed and a yaw rate."""
 
     def __init__(
-        self,
-        cfg: MotionConfig,
-        plan: FloorPlan,
-        costmap: LocalCostmap,
-        footprint: Footprint,
-        front_stop_mm: float,
+        self, cfg: MotionConfig, plan: FloorPlan, costmap: LocalCostmap, footprint: Footprint
     ) -> None:
         self.cfg = cfg
-        self.front_stop_mm = front_stop_mm
-        """The collision module's widest front stop distance from standstill: the robot waits
-        outside it, or the gate would hold it there, unable to turn away."""
         self.plan = plan
         self.costmap = costmap
         self.footprint = footprint
@@ -96,33 +79,6 @@ class MotionController:
     def safety_status(self, instruction_id: int, now: float, reason: str) -> MotionStatus:
         """The status while the safety gate holds the robot."""
         return self._status(instruction_id, MotionState.SAFETY_STOP, now, None, reason)
-
-    def turn_away(self, ins: MoveInstruction, pose: PoseEstimate, now: float) -> float:
-        """The yaw rate for a slow turn on the spot towards the detour lane, for while the
-        safety gate holds the robot but its verdict allows turning (an obstacle on the front
-        face only); 0 when there is no detour to turn to or the swept body is not clear."""
-        if ins.action != "follow_lane" or ins.target_s_mm is None or not ins.avoid:
-            return 0.0
-        if ins.floor is not None and ins.floor != pose.floor:
-            return 0.0
-        floor = self.plan.floor(pose.floor)
-        s, d = floor.to_hallway(pose.x_mm, pose.y_mm)
-        direction = self._direction
-        lane = ins.lane_mm if ins.lane_mm is not None else d
-        if self._detour is None:
-            ahead = self._obstacle_ahead(floor, s, lane, direction, now)
-            if ahead is not None and ahead[1]:
-                self._detour = self._detour_lane(floor, ahead[0], lane, direction, now)
-        if self._detour is None or abs(self._detour - d) < self.cfg.costmap_resolution_mm:
-            return 0.0
-        travel = floor.hallway.heading_deg + (0.0 if direction > 0 else 180.0)
-        side = math.copysign(1.0, (self._detour - d) * direction)
-        error = wrap_deg(travel + side * TURN_AWAY_MAX_DEG - pose.heading_deg)
-        if error * side <= 0.0 or abs(error) <= self.cfg.heading_tolerance_deg:
-            return 0.0
-        rate = math.copysign(min(TURN_AWAY_DPS, abs(error)), error)
-        sweep = pose.heading_deg + np.linspace(0.0, rate * TURN_AWAY_SWEEP_S, 5)
-        return rate if self.costmap.rotation_clear(pose.x_mm, pose.y_mm, sweep, now) else 0.0
 
     def _status(
         self,
@@ -298,10 +254,6 @@ class MotionController:
                 gap = (obstacle_s - s) * direction - self._wait_distance()
                 target = min(target, self.profile.target(gap, cruise))
                 if not static:
-                    # Approach speed while it is being confirmed: it may still turn out to be
-                    # static in time to go round it without stopping first.
-                    target = min(target, cfg.approach_speed_mm_s)
-                if not static:
                     why = "something moving ahead, waiting"
                 elif ins.avoid:
                     why = "no way past the obstacle ahead, waiting"
@@ -387,11 +339,15 @@ class MotionController:
         return Command(min(self.speed, limit), self.yaw_rate, status)
 
     def _wait_distance(self) -> float:
-        """Centre-to-obstacle distance at which the robot waits: outside the lethal zone and
-        the collision module's stop distance."""
+        """Centre-to-obstacle distance at which the robot waits: outside the lethal zone."""
         fp = self.footprint
-        front = max(fp.front_extra_mm + self.cfg.obstacle_clearance_mm, self.front_stop_mm)
-        return fp.length_mm / 2 + front + self.cfg.costmap_resolution_mm + WAIT_ROOM_MM
+        return (
+            fp.length_mm / 2
+            + fp.front_extra_mm
+            + self.cfg.obstacle_clearance_mm
+            + self.cfg.costmap_resolution_mm
+            + WAIT_ROOM_MM
+        )
 
     def _obstacle_ahead(
         self, floor: Floor, s: float, lane: float, direction: float, now: float
