@@ -145,6 +145,14 @@ class CollisionStatus(Message):
     distance_mm: int | None = None
     reason: str = ""
     speed_limit_mm_s: float = 0.0
+    blocked_faces: tuple[Literal["front", "left", "right", "rear"], ...] = ()
+    """Faces with an obstacle inside their stop distance (not sensor faults)."""
+    front_clearance_mm: int | None = None
+    """Nearest front return, remembered ones included; None: nothing in range."""
+    may_rotate: bool = False
+    """A "stop" whose only cause is an obstacle on the front face, with no sensor fault,
+    clear sides, and a front clearance no smaller than when the stop began: turning on the
+    spot (zero forward speed) away from it is allowed. Everything else stays stopped."""
 
 
 # --- orders and delivery ------------------------------------------------------------------

@@ -228,3 +228,40 @@ def test_memory_keeps_the_nearest_return_per_sensor() -> None:
     m.update(scan({**CLEAR, **ahead(500)}, t=0.0), 0, 1)
     m.update(scan({**CLEAR, **ahead(650)}, t=0.1), 0, 2)
     assert m.update(scan(CLEAR, t=0.2), 0, 3).distance_mm == 500
+
+
+def test_a_front_only_stop_allows_turning_on_the_spot() -> None:
+    m = monitor()
+    m.update(scan(CLEAR, t=0.0), 0, 1)
+    status = m.update(scan({**CLEAR, 2: 400}, t=0.1), 0, 2)
+    assert status.state is SafetyState.STOP
+    assert (status.blocked_faces, status.front_clearance_mm, status.may_rotate) == (
+        ("front",),
+        400,
+        True,
+    )
+    # Turning away opens the gap: still allowed while it is stopped.
+    assert m.update(scan({**CLEAR, 2: 430}, t=0.2), 0, 3).may_rotate
+
+
+def test_turning_that_brings_the_front_nearer_is_refused() -> None:
+    m = monitor()
+    m.update(scan(CLEAR, t=0.0), 0, 1)
+    assert m.update(scan({**CLEAR, 2: 400}, t=0.1), 0, 2).may_rotate
+    nearer = m.update(scan({**CLEAR, 2: 350}, t=0.2), 0, 3)
+    assert nearer.state is SafetyState.STOP and not nearer.may_rotate
+
+
+def test_a_side_stop_or_a_sensor_fault_never_allows_turning() -> None:
+    m = monitor()
+    m.update(scan(CLEAR, t=0.0), 0, 1)
+    both = m.update(scan({**CLEAR, 2: 400, 0: 40}, t=0.1), 0, 2)
+    assert set(both.blocked_faces) == {"front", "right"} and not both.may_rotate
+    m = monitor()
+    m.update(scan(CLEAR, t=0.0), 0, 1)
+    faulty = scan({**CLEAR, 2: 400}, t=0.1)
+    readings = [
+        r.model_copy(update={"healthy": False}) if r.sensor == 5 else r for r in faulty.readings
+    ]
+    status = m.update(faulty.model_copy(update={"readings": readings}), 0, 2)
+    assert status.state is SafetyState.STOP and not status.may_rotate

@@ -62,6 +62,8 @@ async def test_short_scenario_reports_an_undelivered_order(tmp_path: Path) -> No
     assert order["status"] == "preparing"
     assert order["placed_at_s"] >= 0.5
     assert order["delivered_at_s"] is None and order["stop_error_mm"] is None
+    # An order still open at the time limit says so, and what motion was doing.
+    assert order["detail"].startswith("not ended within the 3 s time limit: motion ")
     assert report["collisions"] == []
     # Standing still 295 mm left of the axis: 850 - 295 - 255 mm to the left wall.
     assert report["min_clearance_mm"] == 300

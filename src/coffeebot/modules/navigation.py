@@ -50,6 +50,10 @@ POLL_S = 0.2
 
 NOT_MOVING = (MotionState.WAITING, MotionState.BLOCKED, MotionState.SAFETY_STOP)
 
+PROGRESS_MM = 100.0
+"""Getting this much nearer the end of a move counts as progress: creeping to and fro round
+something without getting on is as blocked as standing still."""
+
 
 class DeliveryAborted(Exception):
     """The delivery cannot go on; the message is the reason the customer sees."""
@@ -124,7 +128,8 @@ class NavigationModule(Module):
         """Send one instruction and wait until motion reports it done."""
         ident = self._instruct(ctx, move.instruction)
         reported_blocked = False
-        heard = ctx.clock.now()
+        heard = progressed = ctx.clock.now()
+        nearest = float("inf")
         while True:
             with contextlib.suppress(TimeoutError):
                 await ctx.board.next(MOTION_STATUS, timeout=1.0)
@@ -139,14 +144,22 @@ class NavigationModule(Module):
                 if reported_blocked:
                     self._progress(ctx, f"on the way again: {move.instruction.detail}")
                 return
-            stuck = status.state in NOT_MOVING
-            if stuck and status.since_s >= self.nav.blocked_give_up_s:
-                raise DeliveryAborted(f"blocked for {status.since_s:.0f} s: {status.detail}")
-            if stuck and status.since_s >= self.nav.blocked_report_s and not reported_blocked:
+            if status.remaining_mm is not None and status.remaining_mm < nearest - PROGRESS_MM:
+                nearest, progressed = status.remaining_mm, heard
+            held = status.since_s if status.state in NOT_MOVING else 0.0
+            stalled = heard - progressed
+            why = status.detail
+            if stalled > held:
+                why = f"no progress for {stalled:.0f} s ({status.detail})"
+            stuck_s = max(held, stalled)
+            if stuck_s >= self.nav.blocked_give_up_s:
+                raise DeliveryAborted(f"blocked for {stuck_s:.0f} s: {why}")
+            stuck = stuck_s >= self.nav.blocked_report_s
+            if stuck and not reported_blocked:
                 reported_blocked = True
-                self._progress(ctx, f"blocked: {status.detail}")
+                self._progress(ctx, f"blocked: {why}")
                 if self.nav.on_blocked == "return":
-                    raise DeliveryAborted(f"blocked: {status.detail}")
+                    raise DeliveryAborted(f"blocked: {why}")
             elif not stuck and reported_blocked:
                 reported_blocked = False
                 self._progress(ctx, f"on the way again: {move.instruction.detail}")

@@ -46,6 +46,10 @@ FAILED = frozenset({ReadingStatus.HARDWARE_FAIL, ReadingStatus.BUS_ERROR})
 
 _RANK = {SafetyState.GO: 0, SafetyState.SLOW: 1, SafetyState.STOP: 2}
 
+ROTATE_NOISE_MM = 10.0
+"""How much the front clearance may read below its value at the start of a stop and still
+count as not decreasing while turning on the spot: two readings' noise (+/-5 mm each)."""
+
 
 @dataclass(frozen=True)
 class _Sighting:
@@ -118,6 +122,8 @@ class CollisionMonitor:
         self._memory: dict[int, _Sighting] = {}
         self._travel_mm = 0.0
         self._last_t: float | None = None
+        self._stop_clearance: float | None = None
+        """The front clearance when the current front stop began."""
 
     def _recall(self, sensor: TofSensorConfig, now: float) -> tuple[float, _Sighting] | None:
         """The remembered return of ``sensor`` and its distance now, unless it has expired."""
@@ -245,14 +251,25 @@ class CollisionMonitor:
             ),
         )
         previous, self.state = self.state, worst.state
+        front = [
+            f.distance_mm
+            for f in findings
+            if f.sensor.face == "front" and f.distance_mm is not None
+        ]
+        clearance = min(front) if front else None
         if worst.state is SafetyState.GO:
+            self._stop_clearance = None
             reason = "clear again" if previous is not SafetyState.GO else "clear"
             return CollisionStatus(
                 state=SafetyState.GO,
                 scan_seq=scan_seq,
                 reason=reason,
                 speed_limit_mm_s=self.max_speed_mm_s,
+                front_clearance_mm=clearance,
             )
+        stops = [f for f in findings if f.state is SafetyState.STOP]
+        faces = tuple(sorted({f.sensor.face for f in stops if f.distance_mm is not None}))
+        may_rotate = self._may_rotate(stops, faces, clearance)
         return CollisionStatus(
             state=worst.state,
             scan_seq=scan_seq,
@@ -261,4 +278,22 @@ class CollisionMonitor:
             distance_mm=worst.distance_mm,
             reason=worst.reason,
             speed_limit_mm_s=worst.speed_limit_mm_s,
+            blocked_faces=faces,
+            front_clearance_mm=clearance,
+            may_rotate=may_rotate,
         )
+
+    def _may_rotate(
+        self, stops: list[_Finding], faces: tuple[str, ...], clearance: int | None
+    ) -> bool:
+        """Turning on the spot is allowed only while every stop is an obstacle on the front
+        face (no sensor fault, sides clear) and the front clearance has not fallen since the
+        stop began: a turn that brings the front nearer, or anything coming closer, ends it."""
+        front_only = bool(stops) and faces == ("front",)
+        front_only = front_only and all(f.distance_mm is not None for f in stops)
+        if not front_only or clearance is None:
+            self._stop_clearance = None
+            return False
+        if self._stop_clearance is None:
+            self._stop_clearance = clearance
+        return clearance >= self._stop_clearance - ROTATE_NOISE_MM

@@ -23,6 +23,7 @@ from coffeebot.config import ConfigError, RobotConfig, describe_validation_error
 from coffeebot.floorplan import FloorPlan, load_floorplan
 from coffeebot.messages import (
     COLLISION,
+    MOTION_STATUS,
     OPERATOR_EVENT,
     ORDER_UPDATE,
     OperatorEvent,
@@ -183,7 +184,7 @@ class ScenarioModule(Module):
     """Places the scenario's orders on time, records what happens, ends the run."""
 
     name = "scenario"
-    inputs = (COLLISION, ORDER_UPDATE)
+    inputs = (COLLISION, ORDER_UPDATE, MOTION_STATUS)
     outputs = (OPERATOR_EVENT,)
 
     def __init__(
@@ -237,6 +238,7 @@ class ScenarioModule(Module):
                 self._people(ctx, t)
                 self._odometer()
                 if t >= self.scenario.time_limit_s:
+                    self._unfinished(ctx)
                     return self._end("time limit")
                 placed = [o for o in self.log.orders if o.id is not None]
                 if not pending and placed and all(OrderStatus(o.status).final for o in placed):
@@ -276,6 +278,21 @@ class ScenarioModule(Module):
                 self.log.travelled_mm += step
                 self.log.moving_s += dt
         self.log.last_pose, self.log.last_t = pose, t
+
+    def _unfinished(self, ctx: ModuleContext) -> None:
+        """Orders still open at the time limit: their detail says so, with what motion was
+        last doing, so a run never ends without a reason."""
+        motion = ctx.board.latest(MOTION_STATUS)
+        doing = "no motion status"
+        if motion is not None:
+            m = motion.msg
+            doing = f"motion {m.state.value} for {m.since_s:.0f} s ({m.detail})"
+        for track in self.log.orders:
+            if track.id is not None and not OrderStatus(track.status).final:
+                track.detail = (
+                    f"not ended within the {self.scenario.time_limit_s:.0f} s time limit: "
+                    f"{doing}; last: {track.detail}"
+                )
 
     def _end(self, why: str) -> None:
         self.log.ended = why
