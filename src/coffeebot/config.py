@@ -120,6 +120,12 @@ class CollisionConfig(Section):
         description="a front return inside the body's corridor keeps blocking this long after "
         "it drops out of view (0: no memory)",
     )
+    memory_max_turn_deg: float = Field(
+        10.0,
+        gt=0,
+        description="a remembered return is forgotten once the body has turned this much since: "
+        "it is no longer ahead (turning on the spot in the elevator car, round a corner)",
+    )
     narrow_margin_mm: float = Field(
         250.0,
         ge=0,

@@ -223,6 +223,16 @@ def test_only_returns_inside_the_body_corridor_are_remembered() -> None:
     assert m.update(scan(CLEAR, t=0.3), 0, 4).distance_mm == 700
 
 
+def test_a_remembered_return_is_forgotten_once_the_body_turns_away() -> None:
+    # In the elevator car the robot faces the back wall, then turns on the spot to drive out.
+    m = monitor(memory_s=1.5, memory_max_turn_deg=10)
+    m.update(scan({**CLEAR, 3: 250}, t=0.0), 0, 1)
+    turning = m.update(scan(CLEAR, t=0.1), 0, 2, yaw_rate_dps=50)  # 5 deg turned: still ahead
+    assert turning.distance_mm == 250
+    turned = m.update(scan(CLEAR, t=0.3), 0, 3, yaw_rate_dps=50)  # 15 deg: no longer ahead
+    assert turned.distance_mm is None
+
+
 def test_memory_keeps_the_nearest_return_per_sensor() -> None:
     m = monitor(memory_s=1.5)
     m.update(scan({**CLEAR, **ahead(500)}, t=0.0), 0, 1)

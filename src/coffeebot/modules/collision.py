@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import ClassVar
 
 from coffeebot.config import RobotConfig
@@ -36,12 +37,15 @@ class CollisionModule(Module):
             body_width_mm=cfg.geometry.width_mm,
         )
 
-    def _speed(self, ctx: ModuleContext) -> float | None:
+    def _motion(self, ctx: ModuleContext) -> tuple[float | None, float]:
+        """Forward speed (None without fresh odometry) and yaw rate from the wheel speeds."""
         last = ctx.board.latest(ODOMETRY)
         age = ctx.board.age(ODOMETRY)
         if last is None or age is None or age > ODOMETRY_STALE_S:
-            return None
-        return (last.msg.left_mm_s + last.msg.right_mm_s) / 2.0
+            return None, 0.0
+        left, right = last.msg.left_mm_s, last.msg.right_mm_s
+        yaw_rate = math.degrees((right - left) / self.config.motor.wheel_base_mm)
+        return (left + right) / 2.0, yaw_rate
 
     async def run(self, ctx: ModuleContext) -> None:
         # A restart forgets everything: back to "stop" until every face is clear again.
@@ -51,7 +55,8 @@ class CollisionModule(Module):
         with ctx.board.subscribe(RANGE_SCAN) as scans:
             async for envelope in scans:
                 # No await between reading the scan and publishing the verdict.
-                status = self.monitor.update(envelope.msg, self._speed(ctx), envelope.seq)
+                speed, yaw_rate = self._motion(ctx)
+                status = self.monitor.update(envelope.msg, speed, envelope.seq, yaw_rate)
                 ctx.board.publish(COLLISION, status)
                 stopped = status.state is SafetyState.STOP
                 safety.update(

@@ -58,6 +58,8 @@ class _Sighting:
     distance_mm: float
     travel_mm: float
     """The odometer when it was seen."""
+    turned_deg: float
+    """The turn counter when it was seen: once the body has turned away, it is not ahead."""
     t_s: float
     narrow: bool
 
@@ -121,6 +123,7 @@ class CollisionMonitor:
         """Per front sensor: the range within which its whole cone lies inside the body's width."""
         self._memory: dict[int, _Sighting] = {}
         self._travel_mm = 0.0
+        self._turned_deg = 0.0
         self._last_t: float | None = None
         self._stop_clearance: float | None = None
         """The front clearance when the current front stop began."""
@@ -128,7 +131,11 @@ class CollisionMonitor:
     def _recall(self, sensor: TofSensorConfig, now: float) -> tuple[float, _Sighting] | None:
         """The remembered return of ``sensor`` and its distance now, unless it has expired."""
         seen = self._memory.get(sensor.id)
-        if seen is None or now - seen.t_s > self.cfg.memory_s:
+        if (
+            seen is None
+            or now - seen.t_s > self.cfg.memory_s
+            or self._turned_deg - seen.turned_deg > self.cfg.memory_max_turn_deg
+        ):
             self._memory.pop(sensor.id, None)
             return None
         return max(0.0, seen.distance_mm - (self._travel_mm - seen.travel_mm)), seen
@@ -138,7 +145,9 @@ class CollisionMonitor:
             return
         recalled = self._recall(sensor, now)
         if recalled is None or distance <= recalled[0]:
-            self._memory[sensor.id] = _Sighting(distance, self._travel_mm, now, narrow)
+            self._memory[sensor.id] = _Sighting(
+                distance, self._travel_mm, self._turned_deg, now, narrow
+            )
 
     def _radius(self, face: str, speed_mm_s: float) -> float:
         if face == "front":
@@ -229,12 +238,20 @@ class CollisionMonitor:
             )
         return _Finding(SafetyState.GO, sensor, distance, "clear", self.max_speed_mm_s)
 
-    def update(self, scan: RangeScan, speed_mm_s: float | None, scan_seq: int) -> CollisionStatus:
-        """The verdict for ``scan`` at forward speed ``speed_mm_s`` (None: unknown, assume max)."""
+    def update(
+        self,
+        scan: RangeScan,
+        speed_mm_s: float | None,
+        scan_seq: int,
+        yaw_rate_dps: float = 0.0,
+    ) -> CollisionStatus:
+        """The verdict for ``scan`` at forward speed ``speed_mm_s`` (None: unknown, assume max)
+        while turning at ``yaw_rate_dps``."""
         speed = self.max_speed_mm_s if speed_mm_s is None else speed_mm_s
         now = scan.cycle_start_s
         if self._last_t is not None and now > self._last_t:
             self._travel_mm += max(0.0, speed) * (now - self._last_t)
+            self._turned_deg += abs(yaw_rate_dps) * (now - self._last_t)
         self._last_t = now
         readings = {r.sensor: r for r in scan.readings}
         narrow = self.narrow(readings)
