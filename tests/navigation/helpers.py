@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from coffeebot.config import RobotConfig, load_robot_config
+from coffeebot.config import CollisionConfig, RobotConfig, load_robot_config
 from coffeebot.floorplan import FloorPlan, load_floorplan
 from coffeebot.messages import (
     MotionState,
@@ -59,11 +59,16 @@ class Run:
     done: bool = False
 
 
-def drive(world: World, instruction: MoveInstruction, max_time_s: float) -> Run:
+def drive(
+    world: World,
+    instruction: MoveInstruction,
+    max_time_s: float,
+    collision: CollisionConfig = CONFIG.collision,
+) -> Run:
     """Run one instruction until motion reports done (or time runs out)."""
     module = MotionModule(CONFIG, PLAN)
     monitor = CollisionMonitor(
-        CONFIG.tof.sensors, CONFIG.collision, max_speed_mm_s=CONFIG.motor.max_speed_mm_s
+        CONFIG.tof.sensors, collision, max_speed_mm_s=CONFIG.motor.max_speed_mm_s
     )
     run = Run()
     seq = 0

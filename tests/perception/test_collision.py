@@ -93,6 +93,14 @@ def test_hysteresis_keeps_stop_until_clearance_exceeds_radius_plus_margin() -> N
 def test_obstacle_leaving_gives_clear_again() -> None:
     m = monitor()
     m.update(scan(CLEAR, t=0.0), 0, 1)
+    assert m.update(scan({**CLEAR, 2: 100}, t=0.1), 0, 2).state is SafetyState.STOP
+    status = m.update(scan(CLEAR, t=0.2), 0, 3)
+    assert status.state is SafetyState.GO and status.reason == "clear again"
+
+
+def test_with_memory_an_obstacle_leaving_view_clears_only_after_memory_s() -> None:
+    m = monitor(memory_s=1.5)
+    m.update(scan(CLEAR, t=0.0), 0, 1)
     m.update(scan({**CLEAR, 2: 100}, t=0.1), 0, 2)
     # Out of view it is remembered for memory_s (it may only have left the cone), then clear.
     assert m.update(scan(CLEAR, t=0.2), 0, 3).state is SafetyState.STOP
