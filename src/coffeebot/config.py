@@ -257,8 +257,11 @@ class MotionConfig(Section):
         0.05, gt=0, description="control period; the motor driver's command timeout must be longer"
     )
     heading_gain: float = Field(2.0, gt=0, description="rad/s of turn per rad of heading error")
-    lateral_gain: float = Field(
-        0.004, gt=0, description="rad of heading offset per mm of error across the lane"
+    lane_lookahead_mm: float = Field(
+        800.0,
+        gt=0,
+        description="lane keeping aims at the lane this far ahead (pure pursuit); shorter "
+        "weaves: with the heading hold's gain it sets the damping of the lateral loop",
     )
     max_lane_angle_deg: float = Field(20.0, gt=0, description="steepest angle to regain a lane")
     max_turn_rate_dps: float = Field(45.0, gt=0)
@@ -269,6 +272,12 @@ class MotionConfig(Section):
     obstacle_memory_s: float = Field(8.0, gt=0, description="unseen obstacle cells expire")
     wall_margin_mm: float = Field(
         60.0, ge=0, description="a reading within this of the plan's walls is the wall"
+    )
+    wall_heading_tolerance_deg: float = Field(
+        3.0,
+        ge=0,
+        description="the cone is widened by this when asking whether a wall explains a "
+        "reading: at a grazing wall one degree of heading error moves the return ~100 mm",
     )
     side_clearance_mm: float = Field(
         100.0,
