@@ -4,7 +4,8 @@
 around the robot, marked and cleared from the time-of-flight readings the way sonar costmaps
 are: a VL53L1X reports the nearest return within its cone, so a reading marks the whole arc
 of the cone at that range as occupied and clears the cone in front of it (everything nearer
-is known free). A reading the plan's walls explain (some ray of the cone meets a wall within
+is known free). A reading the plan's walls explain (some ray of the cone, widened by
+``wall_heading_tolerance_deg`` for the pose's heading error, meets a wall within
 ``wall_margin_mm`` of the range) belongs to the static layer and marks nothing. Marks the
 robot does not see again expire after ``obstacle_memory_s``.
 
@@ -39,6 +40,10 @@ MAX_MARK_MM = 1500.0
 
 RAYS_PER_CONE = 7
 """Rays sampled across a cone when clearing and marking."""
+
+EXPLAIN_RAYS = 15
+"""Rays sampled across the widened cone when asking whether the plan's walls explain a
+reading: finer than the marking, since a grazing wall is met only near the cone's edge."""
 
 
 def expected_range_mm(floor: Floor, x_mm: float, y_mm: float, angles: np.ndarray) -> np.ndarray:
@@ -153,6 +158,8 @@ class LocalCostmap:
         self._recentre(floor, x_mm, y_mm)
         readings = {r.sensor: r for r in scan.readings}
         spread = np.radians(np.linspace(-self.half_fov_deg, self.half_fov_deg, RAYS_PER_CONE))
+        widest = self.half_fov_deg + self.cfg.wall_heading_tolerance_deg
+        explain = np.radians(np.linspace(-widest, widest, EXPLAIN_RAYS))
         for sensor in self.sensors:
             reading = readings.get(sensor.id)
             if reading is None or not reading.healthy:
@@ -174,7 +181,8 @@ class LocalCostmap:
                 self.clear_t[i, j] = now
             if distance is None or distance > MAX_MARK_MM:
                 continue
-            if expected_range_mm(floor, sx, sy, angles).min() <= distance + self.cfg.wall_margin_mm:
+            wall = expected_range_mm(floor, sx, sy, math.radians(look) + explain).min()
+            if wall <= distance + self.cfg.wall_margin_mm:
                 continue  # the plan's walls explain the reading
             hx = sx + distance * np.cos(angles)
             hy = sy + distance * np.sin(angles)
