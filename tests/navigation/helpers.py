@@ -57,6 +57,8 @@ class Run:
     states: list[MotionState] = field(default_factory=list)
     min_speed_after_start: float = 0.0
     done: bool = False
+    path: list[tuple[float, float, float]] = field(default_factory=list)
+    """True (x, y, heading) each period."""
 
 
 def drive(
@@ -76,6 +78,7 @@ def drive(
         seq += 1
         scan = to_scan(world)
         pose = true_pose(world)
+        run.path.append((pose.x_mm, pose.y_mm, pose.heading_deg))
         module.costmap.update(
             scan, PLAN.floor(pose.floor), pose.x_mm, pose.y_mm, pose.heading_deg, world.t_s
         )

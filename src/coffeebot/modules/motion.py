@@ -95,10 +95,12 @@ class MotionModule(Module):
             config.geometry.length_mm,
             config.geometry.width_mm,
             # Keep the collision module's front stop distance free, so going round never
-            # trips it: its radius (and hysteresis) less the clearance kept anyway.
+            # trips it: its radius, the narrow-return margin (a box corner is narrow) and
+            # the hysteresis, less the clearance kept anyway.
             front_extra_mm=max(
                 0.0,
                 config.collision.front_radius_mm
+                + config.collision.narrow_margin_mm
                 + config.collision.hysteresis_mm
                 - config.motion.obstacle_clearance_mm,
             ),

@@ -11,8 +11,8 @@ robot does not see again expire after ``obstacle_memory_s``.
 
 Inflation is evaluated where it is needed, at the poses a planner asks about, rather than
 over the whole grid: the lethal part is exact for the robot's rectangle (an obstacle cell
-closer than ``obstacle_clearance_mm`` to the body), walls are lethal within half the body
-width plus ``side_clearance_mm`` of the centre, and the cost decays exponentially over
+closer than ``obstacle_clearance_mm`` to the body), walls are lethal within
+``side_clearance_mm`` of the body's rectangle, and the cost decays exponentially over
 ``inflation_mm`` beyond that, so the planner prefers to keep its distance when it can.
 
 Each cell also remembers since when it has been continuously occupied: an obstacle whose
@@ -219,18 +219,49 @@ class LocalCostmap:
         gaps = self.footprint.gap_mm(local_x, local_y).min(axis=1) - self.res / 2.0
         return gaps.reshape(np.shape(xs))
 
-    def wall_distances(self, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
-        """For each point, the distance from the body centre to the nearest plan wall."""
-        if self.floor is None:
-            return np.full(np.shape(xs), math.inf)
-        points_x, points_y = np.ravel(xs)[:, None], np.ravel(ys)[:, None]
-        distances = segment_distances(self.floor.segment_array, points_x, points_y)
-        return distances.min(axis=1).reshape(np.shape(xs))
+    def wall_gaps(self, xs: np.ndarray, ys: np.ndarray, thetas: np.ndarray) -> np.ndarray:
+        """For each pose, the smallest gap between the body's rectangle and a plan wall.
 
-    def cost(self, obstacle_gap_mm: np.ndarray, wall_distance_mm: np.ndarray) -> np.ndarray:
+        Exact for a convex body and straight walls that do not cross it: the nearest points
+        are a wall end against the rectangle or a body corner against a wall. A turn near a
+        wall swings the corners out past the half width, which a centre distance misses.
+        """
+        shape = np.shape(xs)
+        if self.floor is None:
+            return np.full(shape, math.inf)
+        x, y, th = np.ravel(xs), np.ravel(ys), np.ravel(thetas)
+        # Only walls near the poses are measured; further ones read as inf (nothing beyond
+        # the side clearance plus the inflation distance changes the cost).
+        body_reach = math.hypot(self.footprint.length_mm, self.footprint.width_mm) / 2.0
+        reach = (
+            math.hypot(np.ptp(x), np.ptp(y)) / 2.0
+            + body_reach
+            + self.cfg.side_clearance_mm
+            + self.cfg.inflation_mm
+        )
+        seg = self.floor.segment_array
+        middle_x, middle_y = (x.min() + x.max()) / 2.0, (y.min() + y.max()) / 2.0
+        seg = seg[segment_distances(seg, float(middle_x), float(middle_y)) <= reach]
+        if seg.size == 0:
+            return np.full(shape, math.inf)
+        c, s = np.cos(th)[:, None], np.sin(th)[:, None]
+        ends_x = np.concatenate([seg[:, 0], seg[:, 2]])[None, :] - x[:, None]
+        ends_y = np.concatenate([seg[:, 1], seg[:, 3]])[None, :] - y[:, None]
+        body = Footprint(self.footprint.length_mm, self.footprint.width_mm)
+        from_ends = body.gap_mm(c * ends_x + s * ends_y, -s * ends_x + c * ends_y).min(axis=1)
+        half_l, half_w = body.length_mm / 2.0, body.width_mm / 2.0
+        corners = np.array(
+            [[half_l, half_w], [half_l, -half_w], [-half_l, half_w], [-half_l, -half_w]]
+        )
+        cx = (x[:, None] + c * corners[:, 0] - s * corners[:, 1]).reshape(-1, 1)
+        cy = (y[:, None] + s * corners[:, 0] + c * corners[:, 1]).reshape(-1, 1)
+        from_corners = segment_distances(seg, cx, cy).min(axis=1).reshape(-1, 4).min(axis=1)
+        return np.minimum(from_ends, from_corners).reshape(shape)
+
+    def cost(self, obstacle_gap_mm: np.ndarray, wall_gap_mm: np.ndarray) -> np.ndarray:
         """Inflated cost in [0, 1], ``inf`` where the pose is lethal."""
         cfg = self.cfg
-        wall_gap = wall_distance_mm - (self.footprint.width_mm / 2.0 + cfg.side_clearance_mm)
+        wall_gap = wall_gap_mm - cfg.side_clearance_mm
         obstacle_gap = obstacle_gap_mm - cfg.obstacle_clearance_mm
         gap = np.minimum(wall_gap, obstacle_gap)
         cost = np.exp(-np.maximum(obstacle_gap, 0.0) / max(cfg.inflation_mm, 1.0))

@@ -1,0 +1,60 @@
+"""The costmap's wall gaps and the dynamic window's way out of a lethal zone."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from helpers import CONFIG, PLAN
+
+from coffeebot.modules.motion import MotionModule
+from coffeebot.navigation.dwa import DynamicWindow
+
+FLOOR = PLAN.floor(2)
+HALF_WIDTH = FLOOR.hallway.width_mm / 2
+
+
+def costmap_at(x: float, y: float):
+    costmap = MotionModule(CONFIG, PLAN).costmap
+    costmap.reset(FLOOR, x, y)
+    return costmap
+
+
+def test_a_turned_body_reaches_the_wall_with_a_corner() -> None:
+    """Parallel to the wall the gap is the centre distance less half the width; turned 45
+    degrees, a front corner is far nearer the wall than that."""
+    s, d = 13000.0, -HALF_WIDTH + 500.0
+    x, y = FLOOR.from_hallway(s, d)
+    costmap = costmap_at(x, y)
+    travel = math.radians(FLOOR.hallway.heading_deg)
+    parallel = costmap.wall_gaps(np.array([x]), np.array([y]), np.array([travel]))[0]
+    turned = costmap.wall_gaps(np.array([x]), np.array([y]), np.array([travel - math.pi / 4]))[0]
+    assert abs(parallel - (500.0 - CONFIG.geometry.width_mm / 2)) < 1.0
+    corner = math.hypot(CONFIG.geometry.length_mm / 2, CONFIG.geometry.width_mm / 2)
+    expected = 500.0 - corner * math.sin(math.pi / 4 + math.atan2(255.0, 305.0))
+    assert abs(turned - expected) < 1.0
+    assert turned < parallel - 100.0
+
+
+def test_too_close_to_a_wall_the_window_steers_away_instead_of_giving_up() -> None:
+    """60 mm from the wall is inside the side clearance, so every pose is "lethal"; arcs that
+    end no nearer are still admissible. At speed, the best of them turns away from the wall
+    (slowly: a turn first swings the rear corner towards it)."""
+    gap = 60.0
+    d = -HALF_WIDTH + CONFIG.geometry.width_mm / 2 + gap
+    x, y = FLOOR.from_hallway(13000.0, d)
+    costmap = costmap_at(x, y)
+    choice = DynamicWindow(CONFIG.motion).choose(
+        costmap,
+        FLOOR,
+        (x, y, FLOOR.hallway.heading_deg),
+        400.0,
+        0.0,
+        lane_mm=0.0,
+        direction=1.0,
+        max_speed_mm_s=500.0,
+        dt_s=0.05,
+        now=0.0,
+    )
+    assert choice is not None
+    assert choice.speed_mm_s > 0 and choice.yaw_rate_dps > 0  # forward, turning to the left
