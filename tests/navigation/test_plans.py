@@ -11,7 +11,13 @@ from coffeebot.navigation.control import SpeedProfile, wheel_speeds
 from coffeebot.navigation.lifecycle import DeliveryLifecycle
 from coffeebot.navigation.route import ElevatorRide, Move, RoutePlanner
 
-PLANNER = RoutePlanner(PLAN, CONFIG.motion, CONFIG.navigation, CONFIG.geometry.width_mm)
+PLANNER = RoutePlanner(
+    PLAN,
+    CONFIG.motion,
+    CONFIG.navigation,
+    CONFIG.geometry.width_mm,
+    pivot_mm=CONFIG.motor.axle_x_mm,
+)
 
 
 def moves(route) -> list[Move]:
@@ -46,6 +52,33 @@ def test_route_to_the_other_floor_rides_the_elevator() -> None:
     rides = [s for s in route.steps if isinstance(s, ElevatorRide)]
     assert [(r.from_floor, r.to_floor) for r in rides] == [(2, 3)]
     assert moves(route)[-1].instruction.floor == 3
+
+
+def pivot(s: float, d: float, heading: float, to_heading: float) -> tuple[float, float]:
+    """Where the centre ends after turning on the spot about the axle (hallway frame)."""
+    a = CONFIG.motor.axle_x_mm
+    axle_s = s + a * math.cos(math.radians(heading))
+    axle_d = d + a * math.sin(math.radians(heading))
+    return (
+        axle_s - a * math.cos(math.radians(to_heading)),
+        axle_d - a * math.sin(math.radians(to_heading)),
+    )
+
+
+def test_turning_to_a_door_leaves_the_centre_on_its_axis() -> None:
+    """Coming back along the hallway from 207, the robot stops short of the tea room's door
+    by the axle's offset: the quarter turn about the axle then puts the centre on the door's
+    axis, and the drive in goes straight through the middle."""
+    door = PLAN.find_room("207").door
+    route = PLANNER.route(2, door.at_mm, PLANNER.base)
+    steps = [m.instruction for m in moves(route)]
+    i = next(k for k, ins in enumerate(steps) if ins.action == "turn")
+    arrive, turn = steps[i - 1], steps[i]
+    floor = PLAN.floor(2)
+    travel = 0.0 if arrive.target_s_mm > door.at_mm else 180.0  # hallway frame
+    facing = turn.heading_deg - floor.hallway.heading_deg
+    s, _ = pivot(arrive.target_s_mm, arrive.lane_mm, travel, facing)
+    assert abs(s - PLANNER.base.door.at_mm) < 1.0
 
 
 def test_route_back_to_base_parks_inside() -> None:

@@ -68,7 +68,11 @@ class NavigationModule(Module):
         self.config = config
         self.nav = config.navigation
         self.planner = RoutePlanner(
-            plan, config.motion, config.navigation, config.geometry.width_mm
+            plan,
+            config.motion,
+            config.navigation,
+            config.geometry.width_mm,
+            pivot_mm=config.motor.axle_x_mm,
         )
         self._ids = itertools.count(1)
         self._handled: set[str] = set()

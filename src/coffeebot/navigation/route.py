@@ -10,6 +10,11 @@ Lanes follow the seed's courtesy rule: keep right at ``wall_distance_mm`` betwee
 side and the wall, so the lane's centre line sits ``half_width - wall_distance - body/2`` from
 the axis on the right of the direction of travel. For the last stretch to a door the robot
 pulls over to the door's side, so the customer finds the cup at their door.
+
+The robot turns on the spot about its driven axle, ``pivot_mm`` ahead of the body's centre,
+so a quarter turn carries the centre that far along the hallway. Where a route turns to go
+through a door (into a room, into the elevator car) it stops that much short of the door, so
+the turn leaves the centre on the door's axis rather than aimed past a jamb.
 """
 
 from __future__ import annotations
@@ -67,11 +72,13 @@ class RoutePlanner:
         motion: MotionConfig,
         nav: NavigationConfig,
         body_width_mm: float,
+        pivot_mm: float = 0.0,
     ) -> None:
         self.plan = plan
         self.motion = motion
         self.nav = nav
         self.body_width_mm = body_width_mm
+        self.pivot_mm = pivot_mm
 
     # --- places ----------------------------------------------------------------------------
 
@@ -103,6 +110,11 @@ class RoutePlanner:
     @staticmethod
     def travel_deg(floor: Floor, direction: float) -> float:
         return floor.hallway.heading_deg + (0.0 if direction > 0 else 180.0)
+
+    def turn_point_mm(self, door: Door, direction: float) -> float:
+        """Where to stop, arriving towards ``direction``, so that a quarter turn towards
+        ``door`` leaves the body's centre on the door's axis."""
+        return door.at_mm - direction * self.pivot_mm
 
     def inside_point(self, floor: Floor, door: Door, depth_mm: float) -> tuple[float, float]:
         """A point ``depth_mm`` behind the wall line, through the middle of ``door``."""
@@ -197,9 +209,10 @@ class RoutePlanner:
         elevator = floor.elevator
         assert elevator is not None  # the floor plan loader guarantees it
         if abs(elevator.at_mm - s) <= self.motion.stop_tolerance_mm:
-            return []
+            return []  # across the hallway from it already (out of the tea room)
+        stop_at = self.turn_point_mm(elevator, 1.0 if elevator.at_mm >= s else -1.0)
         lane = self.side_lane_mm(floor, elevator)
-        return [self._lane(floor, elevator.at_mm, lane, detail=f"to the elevator on {floor.name}")]
+        return [self._lane(floor, stop_at, lane, detail=f"to the elevator on {floor.name}")]
 
     def _ride(self, from_level: int, to_level: int, goal: Place) -> ElevatorRide:
         here, there = self.plan.floor(from_level), self.plan.floor(to_level)
@@ -248,7 +261,7 @@ class RoutePlanner:
         steps.append(
             self._lane(
                 floor,
-                door.at_mm,
+                self.turn_point_mm(door, direction) if goal.inside else door.at_mm,
                 lane,
                 room=None if goal.inside else door.room,
                 detail=f"to {door.room}",
