@@ -131,3 +131,46 @@ def test_gate_prefers_stop_on_any_doubt() -> None:
     assert safety_gate(None, None, None, None, 0.2).stop
     assert safety_gate(None, None, EStop(engaged=True, source="x"), HealthStatus.RUNNING, 0.2).stop
     assert safety_gate(None, None, None, HealthStatus.RESTARTING, 0.2).stop
+
+
+def wheels(rig: Rig) -> tuple[float, float]:
+    command = rig.board.latest(MOTOR_COMMAND)
+    assert command is not None
+    return command.msg.left_mm_s, command.msg.right_mm_s
+
+
+async def test_front_stop_that_allows_rotating_turns_on_the_spot_only(rig: Rig) -> None:
+    """Held by a jamb half-way through a turn into a door: the turn may go on (the wheels
+    turn in opposite directions, no forward speed); without ``may_rotate`` nothing moves."""
+    rig.board.publish(
+        MOVE_INSTRUCTION, MoveInstruction(id=2, action="turn", floor=2, heading_deg=-60.0)
+    )
+    held = CollisionStatus(
+        state=SafetyState.STOP,
+        scan_seq=2,
+        face="front",
+        reason="front narrow obstacle at 440 mm",
+        blocked_faces=("front",),
+        may_rotate=True,
+    )
+    await rig.run_for(0.5, held)
+    left, right = wheels(rig)
+    assert left > 0 > right  # turning right, towards -60 degrees
+    assert left + right == pytest.approx(0.0, abs=1e-6)
+    frozen = held.model_copy(update={"may_rotate": False})
+    await rig.run_for(0.2, frozen)
+    assert wheels(rig) == (0.0, 0.0)
+
+
+async def test_a_stale_pose_stops_even_a_turn_the_front_stop_allows(rig: Rig) -> None:
+    rig.board.publish(
+        MOVE_INSTRUCTION, MoveInstruction(id=2, action="turn", floor=2, heading_deg=-60.0)
+    )
+    held = CollisionStatus(
+        state=SafetyState.STOP, scan_seq=2, face="front", blocked_faces=("front",), may_rotate=True
+    )
+    rig.board.publish(CURRENT_STATE, CurrentState(pose=POSE))  # and then no more
+    for _ in range(round(1.0 / CONFIG.motion.period_s)):
+        rig.board.publish(COLLISION, held)  # fresh verdicts, but the pose goes stale
+        await rig.clock.advance(CONFIG.motion.period_s)
+    assert wheels(rig) == (0.0, 0.0)

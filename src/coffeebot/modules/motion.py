@@ -5,7 +5,10 @@ Each control period (and at once on every new collision verdict) it runs the
 then gates the result on the freshest safety state. The robot stops when any of these holds:
 no collision verdict yet, a verdict older than ``stale_safety_s``, a "stop" verdict, the
 e-stop engaged, the collision module reported failed (or stopped, or restarting), or no pose
-fresher than ``stale_pose_s``. A "slow" verdict caps the speed at its limit. On shutdown it
+fresher than ``stale_pose_s``. A "slow" verdict caps the speed at its limit. A front "stop"
+that the verdict marks ``may_rotate`` (sides clear, nothing coming closer) still lets the
+robot turn on the spot, so a turn into a door or away from a box is not frozen half-way,
+and a turn is all it gets: the forward speed stays zero. On shutdown it
 sends a stop before anything is cancelled; if it crashes it sends a stop on the way out, the
 motor driver replaces a silent motion module's command by a stop, and the controller's own
 watchdog stops the wheels if everything above it is gone.
@@ -41,6 +44,8 @@ from coffeebot.navigation.costmap import Footprint, LocalCostmap
 from coffeebot.navigation.motion import MotionController
 
 COLLISION_MODULE = "collision"
+MIN_TURN_DPS = 1.0
+"""Below this a turn on the spot under a front stop is not worth sending: stand still."""
 UNSAFE_HEALTH = (HealthStatus.FAILED, HealthStatus.STOPPED, HealthStatus.RESTARTING)
 
 
@@ -50,6 +55,8 @@ class Gate:
 
     speed_limit_mm_s: float
     reason: str
+    may_rotate: bool = False
+    """A front stop that still allows turning on the spot (the collision verdict's call)."""
 
     @property
     def stop(self) -> bool:
@@ -74,7 +81,7 @@ def safety_gate(
         return Gate(0.0, f"collision verdict {collision_age_s:.2f} s old")
     verdict = collision.msg
     if verdict.state is SafetyState.STOP:
-        return Gate(0.0, f"collision stop: {verdict.reason}")
+        return Gate(0.0, f"collision stop: {verdict.reason}", may_rotate=verdict.may_rotate)
     if verdict.state is SafetyState.SLOW:
         return Gate(verdict.speed_limit_mm_s, f"slow: {verdict.reason}")
     return Gate(verdict.speed_limit_mm_s or float("inf"), "clear")
@@ -149,7 +156,7 @@ class MotionModule(Module):
             self.cfg.stale_safety_s,
         )
         state, age = ctx.board.latest(CURRENT_STATE), ctx.board.age(CURRENT_STATE)
-        if not gate.stop and (
+        if (not gate.stop or gate.may_rotate) and (
             state is None
             or age is None
             or age > self.cfg.stale_pose_s
@@ -167,6 +174,23 @@ class MotionModule(Module):
         state = ctx.board.latest(CURRENT_STATE)
         if self._stopping:
             gate = Gate(0.0, "shutting down")
+        if gate.stop and gate.may_rotate and state is not None:
+            # Held by something ahead, but turning on the spot is allowed: the turn the
+            # controller wants (into a door, away from a jamb, round a box) may clear it.
+            command = self.controller.step(ins, state.msg.pose, now, dt, 0.0)
+            if abs(command.yaw_rate_dps) >= MIN_TURN_DPS:
+                left, right = wheel_speeds(
+                    0.0, command.yaw_rate_dps, self.config.motor.wheel_base_mm
+                )
+                reason = f"turning on the spot; {gate.reason}"
+                ctx.board.publish(
+                    MOTOR_COMMAND, MotorCommand(left_mm_s=left, right_mm_s=right, reason=reason)
+                )
+                ctx.board.publish(
+                    MOTION_STATUS,
+                    self.controller.safety_status(command.status.instruction_id, now, reason),
+                )
+                return
         if gate.stop or state is None:
             self.controller.halt()
             self._stop(ctx.board, gate.reason)

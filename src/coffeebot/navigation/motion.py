@@ -334,9 +334,9 @@ class MotionController:
             status = self._status(ins.id, MotionState.BLOCKED, now, remaining, "no way past")
             return self._command(0.0, 0.0, dt, status, limit)
         status = self._status(ins.id, MotionState.AVOIDING, now, remaining, "going around")
-        self.speed = choice.speed_mm_s
+        self.speed = min(choice.speed_mm_s, limit)
         self.yaw_rate = choice.yaw_rate_dps
-        return Command(min(self.speed, limit), self.yaw_rate, status)
+        return Command(self.speed, self.yaw_rate, status)
 
     def _wait_distance(self) -> float:
         """Centre-to-obstacle distance at which the robot waits: outside the lethal zone."""
