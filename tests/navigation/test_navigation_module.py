@@ -30,6 +30,7 @@ from coffeebot.messages import (
     PoseEstimate,
 )
 from coffeebot.modules.navigation import NavigationModule
+from coffeebot.navigation.lifecycle import READY_FOR_CUP
 from coffeebot.navigation.route import RoutePlanner
 from manual_clock import ManualClock
 
@@ -135,6 +136,7 @@ async def test_delivery_to_the_other_floor_and_home(rig) -> None:
     board.publish(OPERATOR_EVENT, OperatorEvent(kind="cup_loaded", order_id="o1"))
     await clock.advance(5.0)
     assert drain(statuses) == [
+        OrderStatus.PREPARING,  # ready in the tea room
         OrderStatus.ON_THE_WAY,
         OrderStatus.WAITING_FOR_ELEVATOR,
         OrderStatus.ON_THE_WAY,
@@ -154,8 +156,9 @@ async def test_no_cup_no_delivery(rig) -> None:
     board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o2", room="205", drink="tea", name="B"))
     await clock.advance(CONFIG.navigation.loading_timeout_s + 1)
     updates = [e.msg for e in iter(statuses.get_nowait, None)]
-    assert [u.status for u in updates] == [OrderStatus.FAILED]
-    assert "not loaded" in updates[0].detail
+    assert [u.status for u in updates] == [OrderStatus.PREPARING, OrderStatus.FAILED]
+    assert updates[0].detail == READY_FOR_CUP
+    assert "not loaded" in updates[1].detail
 
 
 async def test_nobody_at_the_door_takes_the_cup_back(rig) -> None:

@@ -265,6 +265,7 @@ class NavigationModule(Module):
 
     async def _serve(self, ctx: ModuleContext, life: DeliveryLifecycle) -> None:
         nav = self.nav
+        self._report(ctx, life.ready_for_cup())
         if not await self._wait_for(ctx, self._event("cup_loaded").is_set, nav.loading_timeout_s):
             self._report(
                 ctx, life.fail(f"the cup was not loaded within {nav.loading_timeout_s:.0f} s")

@@ -13,6 +13,10 @@ from coffeebot.messages import DeliveryUpdate, OrderStatus
 
 MOVING = (OrderStatus.ON_THE_WAY, OrderStatus.WAITING_FOR_ELEVATOR)
 
+READY_FOR_CUP = "the robot is in the tea room, waiting for the cup"
+"""The ``preparing`` detail once the robot stands ready: staff load the cup from then on
+(an order is dispatched while the robot may still be driving back from the last one)."""
+
 
 class DeliveryLifecycle:
     """Status of one delivery; every method returns the update to publish, or None."""
@@ -35,6 +39,11 @@ class DeliveryLifecycle:
     def returning(self) -> bool:
         """The order has ended but the robot has left base: it must drive back."""
         return self.final and self.left_base
+
+    def ready_for_cup(self) -> DeliveryUpdate | None:
+        if self.status is not OrderStatus.PREPARING or self.left_base:
+            return None
+        return self._to(OrderStatus.PREPARING, READY_FOR_CUP)
 
     def cup_loaded(self) -> DeliveryUpdate | None:
         if self.status is not OrderStatus.PREPARING:

@@ -32,6 +32,7 @@ from coffeebot.messages import (
 )
 from coffeebot.modules.base import Module, ModuleContext
 from coffeebot.modules.orders import OrderError, OrdersModule
+from coffeebot.navigation.lifecycle import READY_FOR_CUP
 from coffeebot.sim.faults import Fault
 from coffeebot.sim.simulation import SimSetup, Simulation
 from coffeebot.sim.world import ObstacleSpec, Pose
@@ -73,7 +74,9 @@ class Limits(_Model):
 class Staff(_Model):
     """The people around a delivery: staff loading the cup, the customer taking it."""
 
-    load_after_s: float = Field(3.0, ge=0, description="after the order is being prepared")
+    load_after_s: float = Field(
+        3.0, ge=0, description="after the robot stands ready in the tea room for the cup"
+    )
     pickup_after_s: float | None = Field(
         5.0, ge=0, description="after the robot arrived; unset: nobody comes"
     )
@@ -154,7 +157,8 @@ class OrderTrack:
     status: str = "not placed"
     detail: str = ""
     placed_at_s: float | None = None
-    preparing_at_s: float | None = None
+    ready_at_s: float | None = None
+    """When the robot stood ready in the tea room for this order's cup."""
     arrived_at_s: float | None = None
     delivered_at_s: float | None = None
     stop_error_mm: float | None = None
@@ -252,7 +256,7 @@ class ScenarioModule(Module):
             if track.id is None:
                 continue
             due: list[tuple[str, float | None, float | None]] = [
-                ("cup_loaded", track.preparing_at_s, staff.load_after_s),
+                ("cup_loaded", track.ready_at_s, staff.load_after_s),
                 ("pickup_confirmed", track.arrived_at_s, staff.pickup_after_s),
             ]
             for kind, since, delay in due:
@@ -316,8 +320,8 @@ class ScenarioModule(Module):
             return
         track.status, track.detail = status.value, detail
         t = self.sim.t_s
-        if status is OrderStatus.PREPARING and track.preparing_at_s is None:
-            track.preparing_at_s = t
+        if status is OrderStatus.PREPARING and detail == READY_FOR_CUP:
+            track.ready_at_s = t
         if status is OrderStatus.ARRIVED:
             track.arrived_at_s = t
             track.stop_error_mm = self._stop_error_mm(track.spec.room)
