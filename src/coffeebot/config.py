@@ -202,7 +202,7 @@ class StateConfig(Section):
 
     initial_floor: int = 2
     turn_rate_dps: float = Field(
-        5.0, ge=0, description="encoder yaw rate above which the robot counts as turning"
+        5.0, ge=0, description="gyro yaw rate above which the robot counts as turning"
     )
     gyro_weight: float = Field(
         0.98, ge=0, le=1, description="seed 004 complementary filter weight of the gyro in turns"

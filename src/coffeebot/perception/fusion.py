@@ -89,8 +89,12 @@ class Odometer:
         # Seed 004 eq. 3: alpha = (r - l) / W, from the arc both wheels travel.
         encoder_turn = math.degrees((right - left) / self.wheel_base_mm)
         turn = encoder_turn
-        turning = abs(encoder_turn) / dt > self.cfg.turn_rate_dps
-        if gyro is not None and turning:
+        # Whether the robot is turning is the gyro's call, not this step's encoder counts:
+        # those are whole ticks (one tick of difference in a 20 ms step reads as 5.5 deg/s)
+        # and may not have moved since the last message, so judging on them picks steps by
+        # their rounding and drops the gyro's turn on the others (a slow turn lost half of
+        # itself). Either source alone sums to the whole turn.
+        if gyro is not None and abs(gyro) > self.cfg.turn_rate_dps:
             w = self.cfg.gyro_weight
             turn = w * gyro * dt + (1.0 - w) * encoder_turn
         return OdometryStep((left + right) / 2.0, turn, dt, self.axle_x_mm)
