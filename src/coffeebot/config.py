@@ -216,6 +216,12 @@ class StateConfig(Section):
     heading_sigma_deg_per_m: float = Field(
         0.5, ge=0, description="heading random walk per metre travelled"
     )
+    heading_sigma_deg_per_rad_turned: float = Field(
+        3.0,
+        ge=0,
+        description="heading 1-sigma a turn of one radian adds (gyro scale, slip in turns); a "
+        "random walk, so it grows with the square root of the angle turned",
+    )
     uwb_sigma_mm: float = Field(100.0, gt=0, description="1-sigma of a quality-100 UWB fix")
     uwb_gate_sigma: float = Field(
         4.0, gt=0, description="fixes further than this (Mahalanobis) are outliers"

@@ -12,6 +12,7 @@ from perception_helpers import robot
 from coffeebot.config import StateConfig
 from coffeebot.messages import Odometry
 from coffeebot.perception.fusion import EkfPoseFusion, Odometer, OdometryStep
+from coffeebot.perception.geometry import wrap_deg
 from coffeebot.sim.world.robot import Pose, RobotBody, RobotSpec
 
 CFG = StateConfig(gyro_calibration_samples=5)
@@ -148,3 +149,16 @@ def test_a_turn_sampled_before_the_world_stepped_is_counted_whole() -> None:
     # Every third message repeats the last encoder counts while the gyro reads the turn.
     true, counted = _turn_on_the_spot(45.0, 180.0, lag_every=3)
     assert counted == pytest.approx(true, abs=2.0)
+
+
+def test_wall_angles_correct_the_heading_after_a_turn_on_the_spot() -> None:
+    # Odometry counts 171 of a true 180 degree turn on the spot (5 % short, as a gyro's scale
+    # error would); the walls then say where the robot really faces.
+    ekf = EkfPoseFusion(StateConfig())
+    ekf.reset(1000, 0, 0.0, 30, 1.0)
+    for _ in range(180):
+        ekf.predict(OdometryStep(0.0, 171.0 / 180, 0.02, MOTOR.axle_x_mm))
+    assert ekf.sigmas()[2] > 3.0
+    accepted = [ekf.update_heading(180.0, 1.0) for _ in range(5)]
+    assert all(accepted)
+    assert abs(wrap_deg(ekf.pose()[2] - 180.0)) < 1.0

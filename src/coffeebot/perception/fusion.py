@@ -176,7 +176,11 @@ class EkfPoseFusion:
         G = np.array([[c, -ds * s / 2.0], [s, ds * c / 2.0], [0.0, 1.0]])
         sigma_ds = self.cfg.encoder_sigma_fraction * abs(ds) + 0.1
         sigma_dth = math.radians(self.cfg.heading_sigma_deg_per_m * abs(ds) / 1000.0) + 1e-5
-        Q = G @ np.diag([sigma_ds**2, sigma_dth**2]) @ G.T
+        # Turning loses heading too, on the spot as much as on the move: without this a turn
+        # left the heading as certain as before, and wall angles that disagreed with an
+        # odometry error from the turn failed the gate for ever.
+        var_turn = math.radians(self.cfg.heading_sigma_deg_per_rad_turned) ** 2 * abs(dth)
+        Q = G @ np.diag([sigma_ds**2, sigma_dth**2 + var_turn]) @ G.T
         self.P = F @ self.P @ F.T + Q
 
     def _update(self, innovation: np.ndarray, H: np.ndarray, R: np.ndarray, gate: float) -> bool:
