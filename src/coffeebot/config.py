@@ -202,7 +202,7 @@ class StateConfig(Section):
 
     initial_floor: int = 2
     turn_rate_dps: float = Field(
-        5.0, ge=0, description="encoder yaw rate above which the robot counts as turning"
+        5.0, ge=0, description="gyro yaw rate above which the robot counts as turning"
     )
     gyro_weight: float = Field(
         0.98, ge=0, le=1, description="seed 004 complementary filter weight of the gyro in turns"
@@ -215,6 +215,12 @@ class StateConfig(Section):
     )
     heading_sigma_deg_per_m: float = Field(
         0.5, ge=0, description="heading random walk per metre travelled"
+    )
+    heading_sigma_deg_per_rad_turned: float = Field(
+        3.0,
+        ge=0,
+        description="heading 1-sigma a turn of one radian adds (gyro scale, slip in turns); a "
+        "random walk, so it grows with the square root of the angle turned",
     )
     uwb_sigma_mm: float = Field(100.0, gt=0, description="1-sigma of a quality-100 UWB fix")
     uwb_gate_sigma: float = Field(

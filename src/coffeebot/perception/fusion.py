@@ -89,8 +89,12 @@ class Odometer:
         # Seed 004 eq. 3: alpha = (r - l) / W, from the arc both wheels travel.
         encoder_turn = math.degrees((right - left) / self.wheel_base_mm)
         turn = encoder_turn
-        turning = abs(encoder_turn) / dt > self.cfg.turn_rate_dps
-        if gyro is not None and turning:
+        # Whether the robot is turning is the gyro's call, not this step's encoder counts:
+        # those are whole ticks (one tick of difference in a 20 ms step reads as 5.5 deg/s)
+        # and may not have moved since the last message, so judging on them picks steps by
+        # their rounding and drops the gyro's turn on the others (a slow turn lost half of
+        # itself). Either source alone sums to the whole turn.
+        if gyro is not None and abs(gyro) > self.cfg.turn_rate_dps:
             w = self.cfg.gyro_weight
             turn = w * gyro * dt + (1.0 - w) * encoder_turn
         return OdometryStep((left + right) / 2.0, turn, dt, self.axle_x_mm)
@@ -172,7 +176,11 @@ class EkfPoseFusion:
         G = np.array([[c, -ds * s / 2.0], [s, ds * c / 2.0], [0.0, 1.0]])
         sigma_ds = self.cfg.encoder_sigma_fraction * abs(ds) + 0.1
         sigma_dth = math.radians(self.cfg.heading_sigma_deg_per_m * abs(ds) / 1000.0) + 1e-5
-        Q = G @ np.diag([sigma_ds**2, sigma_dth**2]) @ G.T
+        # Turning loses heading too, on the spot as much as on the move: without this a turn
+        # left the heading as certain as before, and wall angles that disagreed with an
+        # odometry error from the turn failed the gate for ever.
+        var_turn = math.radians(self.cfg.heading_sigma_deg_per_rad_turned) ** 2 * abs(dth)
+        Q = G @ np.diag([sigma_ds**2, sigma_dth**2 + var_turn]) @ G.T
         self.P = F @ self.P @ F.T + Q
 
     def _update(self, innovation: np.ndarray, H: np.ndarray, R: np.ndarray, gate: float) -> bool:
