@@ -7,6 +7,14 @@ import math
 import numpy as np
 from helpers import CONFIG, PLAN
 
+from coffeebot.messages import (
+    MotionState,
+    MoveInstruction,
+    PoseEstimate,
+    RangeReading,
+    RangeScan,
+    ReadingStatus,
+)
 from coffeebot.modules.motion import MotionModule
 from coffeebot.navigation.dwa import DynamicWindow
 
@@ -58,3 +66,46 @@ def test_too_close_to_a_wall_the_window_steers_away_instead_of_giving_up() -> No
     )
     assert choice is not None
     assert choice.speed_mm_s > 0 and choice.yaw_rate_dps > 0  # forward, turning to the left
+
+
+def test_seen_late_close_to_a_wide_obstacle_it_turns_out_instead_of_giving_up() -> None:
+    """A mail cart seen late: the robot has stopped with the cart 480 mm ahead, inside the
+    zone the planner keeps free, across the right half of its lane. Every arc from a
+    standstill reaches further into that zone, so the robot first turns on the spot towards
+    the free side (no forward speed), rather than reporting "no way past" for good."""
+    lane_d = -HALF_WIDTH + CONFIG.motion.wall_distance_mm + CONFIG.geometry.width_mm / 2
+    x, y = FLOOR.from_hallway(20000.0, lane_d)
+    module = MotionModule(CONFIG, PLAN)
+    module.costmap.reset(FLOOR, x, y)
+    blocked = {2: 480, 3: 480, 4: 480}  # the front sensors on the right and the middle
+    readings = [
+        RangeReading(sensor=s.id, status=ReadingStatus.VALID, distance_mm=blocked[s.id])
+        if s.id in blocked
+        else RangeReading(sensor=s.id, status=ReadingStatus.OUT_OF_BOUNDS)
+        for s in CONFIG.tof.sensors
+    ]
+    scan = RangeScan(cycle_start_s=0.0, cycle_time_s=0.05, readings=readings)
+    heading = FLOOR.hallway.heading_deg
+    for t in np.arange(0.0, 3.0, 0.05):  # seen for long enough to count as standing still
+        module.costmap.update(scan, FLOOR, x, y, heading, float(t))
+    pose = PoseEstimate(
+        x_mm=x,
+        y_mm=y,
+        heading_deg=heading,
+        floor=2,
+        sigma_x_mm=10,
+        sigma_y_mm=10,
+        sigma_heading_deg=1,
+        speed_mm_s=0.0,
+    )
+    instruction = MoveInstruction(
+        id=1, action="follow_lane", floor=2, target_s_mm=30000.0, lane_mm=lane_d, avoid=True
+    )
+    states, rates = [], []
+    for k in range(20):
+        command = module.controller.step(instruction, pose, 3.0 + 0.05 * k, 0.05, 500.0)
+        states.append(command.status.state)
+        rates.append(command.yaw_rate_dps)
+        assert command.speed_mm_s < 1.0  # nothing forward into the zone
+    assert MotionState.BLOCKED not in states[-5:]
+    assert rates[-1] > 0  # turning left, away from the cart on the right

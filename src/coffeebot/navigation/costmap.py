@@ -206,9 +206,15 @@ class LocalCostmap:
     # --- cost queries ----------------------------------------------------------------------
 
     def obstacle_gaps(
-        self, xs: np.ndarray, ys: np.ndarray, thetas: np.ndarray, now: float
+        self,
+        xs: np.ndarray,
+        ys: np.ndarray,
+        thetas: np.ndarray,
+        now: float,
+        footprint: Footprint | None = None,
     ) -> np.ndarray:
-        """For each pose, the smallest gap between the body and an obstacle cell (inf: none)."""
+        """For each pose, the smallest gap between the body (``footprint``, by default the
+        planner's, front extension included) and an obstacle cell (inf: none)."""
         ox, oy, _ = self.obstacles(now)
         if ox.size == 0:
             return np.full(np.shape(xs), math.inf)
@@ -216,7 +222,8 @@ class LocalCostmap:
         dy = oy[None, :] - np.ravel(ys)[:, None]
         c, s = np.cos(np.ravel(thetas))[:, None], np.sin(np.ravel(thetas))[:, None]
         local_x, local_y = c * dx + s * dy, -s * dx + c * dy
-        gaps = self.footprint.gap_mm(local_x, local_y).min(axis=1) - self.res / 2.0
+        body = footprint or self.footprint
+        gaps = body.gap_mm(local_x, local_y).min(axis=1) - self.res / 2.0
         return gaps.reshape(np.shape(xs))
 
     def wall_gaps(self, xs: np.ndarray, ys: np.ndarray, thetas: np.ndarray) -> np.ndarray:
@@ -266,3 +273,50 @@ class LocalCostmap:
         gap = np.minimum(wall_gap, obstacle_gap)
         cost = np.exp(-np.maximum(obstacle_gap, 0.0) / max(cfg.inflation_mm, 1.0))
         return np.where(gap < 0.0, math.inf, cost)
+
+    def admissible(
+        self,
+        xs: np.ndarray,
+        ys: np.ndarray,
+        thetas: np.ndarray,
+        start: tuple[float, float, float],
+        now: float,
+        footprint: Footprint | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """For paths of poses (rows over time) leaving ``start`` (x, y, heading rad): which
+        are admissible, and each one's worst cost (inf where not admissible).
+
+        A path is admissible if no pose on it is lethal. From a start that is itself inside
+        a lethal zone (the obstacle came closer, was seen late, or the pose estimate moved),
+        a path that ends no nearer to that zone than it starts, and never comes within half
+        the present gap on the way (a turn swings the rear towards it first), is admissible
+        too, as long as it keeps clear of everything else: otherwise the robot could never
+        get out.
+        """
+        gaps = self.obstacle_gaps(xs, ys, thetas, now, footprint)
+        walls = self.wall_gaps(xs, ys, thetas)
+        worst = self.cost(gaps, walls).max(axis=1)
+        here = tuple(np.array([v]) for v in start)
+        here_gap = float(self.obstacle_gaps(*here, now, footprint)[0])
+        here_wall = float(self.wall_gaps(*here)[0])
+        none = np.array([math.inf])
+        inside_obstacle = not np.isfinite(self.cost(np.array([here_gap]), none)[0])
+        inside_wall = not np.isfinite(self.cost(none, np.array([here_wall]))[0])
+        if not (inside_obstacle or inside_wall):
+            return np.isfinite(worst), worst
+        if inside_obstacle:
+            obstacle_ok = _escapes(gaps, here_gap)
+        else:
+            obstacle_ok = np.isfinite(self.cost(gaps, np.full_like(walls, math.inf))).all(axis=1)
+        if inside_wall:
+            wall_ok = _escapes(walls, here_wall)
+        else:
+            wall_ok = np.isfinite(self.cost(np.full_like(gaps, math.inf), walls)).all(axis=1)
+        admissible = obstacle_ok & wall_ok
+        return admissible, np.where(admissible, 1.0, math.inf)
+
+
+def _escapes(gaps: np.ndarray, start_gap: float) -> np.ndarray:
+    """Per path (rows of ``gaps`` over time): ends no nearer than it starts and never comes
+    within half the starting gap on the way."""
+    return (gaps[:, -1] >= start_gap - 1.0) & (gaps.min(axis=1) >= start_gap / 2.0)

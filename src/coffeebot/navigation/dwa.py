@@ -30,12 +30,6 @@ W_HEADING = 0.2
 W_COST = 0.6
 
 
-def escapes(gaps: np.ndarray, start_gap: float) -> np.ndarray:
-    """Per arc (rows of ``gaps`` over time): ends no nearer than it starts and never comes
-    within half the starting gap on the way."""
-    return (gaps[:, -1] >= start_gap - 1.0) & (gaps.min(axis=1) >= start_gap / 2.0)
-
-
 @dataclass(frozen=True)
 class DwaChoice:
     """The best arc, or ``None`` speeds when every arc is lethal (blocked)."""
@@ -101,33 +95,7 @@ class DynamicWindow:
             y0 + np.outer(v, t) * math.sin(h0),
             y0 - radius * (np.cos(theta) - math.cos(h0)),
         )
-        gaps = costmap.obstacle_gaps(xs, ys, theta, now)
-        walls = costmap.wall_gaps(xs, ys, theta)
-        cost = costmap.cost(gaps, walls)
-        worst = cost.max(axis=1)
-        admissible = np.isfinite(worst)
-        start = (np.array([x0]), np.array([y0]), np.array([h0]))
-        here_gap = costmap.obstacle_gaps(*start, now)[0]
-        here_wall = costmap.wall_gaps(*start)[0]
-        no = np.array([math.inf])
-        inside_obstacle = not np.isfinite(costmap.cost(np.array([here_gap]), no)[0])
-        inside_wall = not np.isfinite(costmap.cost(no, np.array([here_wall]))[0])
-        if inside_obstacle or inside_wall:
-            # Already inside a lethal zone (the obstacle came closer, was seen late, or the
-            # pose estimate moved): an arc that ends no nearer to it than it starts, and never
-            # comes within half the present gap on the way (a turn swings the rear towards
-            # it first), still gets out, as long as it keeps clear of everything else.
-            if inside_obstacle:
-                obstacle_ok = escapes(gaps, here_gap)
-            else:
-                obstacle_ok = np.isfinite(costmap.cost(gaps, np.full_like(walls, math.inf)))
-                obstacle_ok = obstacle_ok.all(axis=1)
-            if inside_wall:
-                wall_ok = escapes(walls, here_wall)
-            else:
-                wall_ok = np.isfinite(costmap.cost(np.full_like(gaps, math.inf), walls)).all(axis=1)
-            admissible = obstacle_ok & wall_ok
-            worst = np.where(admissible, 1.0, math.inf)
+        admissible, worst = costmap.admissible(xs, ys, theta, (x0, y0, h0), now)
         if not admissible.any():
             return None
         s0 = floor.to_hallway(x0, y0)[0]

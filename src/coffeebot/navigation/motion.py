@@ -35,6 +35,13 @@ AIM_BEFORE_DRIVING_DEG = 10.0
 AIM_BEFORE_LANE_DEG = 45.0
 """``follow_lane`` facing further than this from the direction of travel turns on the spot."""
 
+DETOUR_TURN_DEG = 30.0
+"""Blocked close to a wide obstacle, the robot first turns this far towards the detour lane
+on the spot, from where the dynamic window finds arcs past it."""
+
+TURN_CHECK_STEPS = 7
+"""Headings checked along a turn on the spot before it is made."""
+
 WAIT_ROOM_MM = 200.0
 """Room left beyond the planner's lethal zone where the robot waits in front of an obstacle,
 so the dynamic window can still turn away from it."""
@@ -331,12 +338,41 @@ class MotionController:
             now=now,
         )
         if choice is None or (choice.speed_mm_s < 1.0 and abs(choice.yaw_rate_dps) < 1.0):
+            # Every arc from here meets the obstacle, or none does better than standing: the
+            # window is too small to swing out from a standstill close to a wide obstacle.
+            # Turn on the spot towards the detour lane first, if that turn is free.
+            side = math.copysign(
+                1.0, (lane - floor.to_hallway(pose.x_mm, pose.y_mm)[1]) * direction
+            )
+            travel = floor.hallway.heading_deg + (0.0 if direction > 0 else 180.0)
+            aim = travel + side * DETOUR_TURN_DEG
+            if abs(wrap_deg(aim - pose.heading_deg)) > self.cfg.heading_tolerance_deg and (
+                self._turn_is_free(pose, aim, now)
+            ):
+                status = self._status(
+                    ins.id, MotionState.AVOIDING, now, remaining, "turning out to go around"
+                )
+                return self._command(0.0, self._turn_rate(pose.heading_deg, aim), dt, status, limit)
             status = self._status(ins.id, MotionState.BLOCKED, now, remaining, "no way past")
             return self._command(0.0, 0.0, dt, status, limit)
         status = self._status(ins.id, MotionState.AVOIDING, now, remaining, "going around")
         self.speed = min(choice.speed_mm_s, limit)
         self.yaw_rate = choice.yaw_rate_dps
         return Command(self.speed, self.yaw_rate, status)
+
+    def _turn_is_free(self, pose: PoseEstimate, aim_deg: float, now: float) -> bool:
+        """Whether turning on the spot from the pose's heading to ``aim_deg`` is an
+        admissible path on the costmap (about the body's centre, as its footprint is). The
+        body alone counts, without the zone kept free ahead for driving: a turn on the spot
+        does not drive into anything, and the collision verdict still gates it."""
+        error = wrap_deg(aim_deg - pose.heading_deg)
+        headings = np.radians(pose.heading_deg + np.linspace(0.0, error, TURN_CHECK_STEPS))
+        xs = np.full((1, TURN_CHECK_STEPS), pose.x_mm)
+        ys = np.full((1, TURN_CHECK_STEPS), pose.y_mm)
+        start = (pose.x_mm, pose.y_mm, math.radians(pose.heading_deg))
+        body = Footprint(self.footprint.length_mm, self.footprint.width_mm)
+        admissible, _ = self.costmap.admissible(xs, ys, headings[None, :], start, now, body)
+        return bool(admissible[0])
 
     def _wait_distance(self) -> float:
         """Centre-to-obstacle distance at which the robot waits: outside the lethal zone."""
