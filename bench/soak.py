@@ -6,8 +6,9 @@ default. Orders are placed through the orders module the way the web places them
 order over HTTP. At the start (after --warmup) and at the end, and once a minute between,
 it prints: resident memory, the process's CPU share and the simulated world's own share of
 it (CPU time inside the world, counted by ``Simulation.cpu_s``), board overflows on reliable
-topics, module restarts, and orders by status. Until navigation exists nothing delivers an
-order: the first stays "preparing" and the rest queue, and the table says so.
+topics, module restarts, and orders by status. Staff load each cup once the robot stands
+ready in the tea room and customers confirm pickup, as in the scenarios; orders arrive faster
+than one robot delivers them, so the queue grows, which is part of the load.
 
     .venv/bin/python bench/soak.py --minutes 10
 
