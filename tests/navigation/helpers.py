@@ -66,10 +66,9 @@ def drive(
     instruction: MoveInstruction,
     max_time_s: float,
     collision: CollisionConfig = CONFIG.collision,
-    config: RobotConfig = CONFIG,
 ) -> Run:
     """Run one instruction until motion reports done (or time runs out)."""
-    module = MotionModule(config, PLAN)
+    module = MotionModule(CONFIG, PLAN)
     monitor = CollisionMonitor(
         CONFIG.tof.sensors, collision, max_speed_mm_s=CONFIG.motor.max_speed_mm_s
     )

@@ -115,16 +115,3 @@ def test_waits_for_a_person_walking_towards_it() -> None:
     assert not world.collisions
     assert MotionState.WAITING in run.states
     assert MotionState.AVOIDING not in run.states[: run.states.index(MotionState.WAITING) + 5]
-
-
-def test_back_from_a_detour_near_the_far_wall_without_swinging_into_it() -> None:
-    """With a wider obstacle clearance the detour runs ~100 mm from the far wall. Turning back
-    towards the lane about the front axle swings the rear corner towards that wall, so the
-    robot peels away no faster than the gap allows instead of at the lane's full angle (at
-    the full angle the rear corner hit the wall at ~200 mm/s)."""
-    wide = CONFIG.motion.model_copy(update={"obstacle_clearance_mm": 150.0})
-    config = CONFIG.model_copy(update={"motion": wide})
-    world = box_in_lane()
-    run = drive(world, lane(21000), max_time_s=120, collision=SEED_SPHERE, config=config)
-    assert MotionState.AVOIDING in run.states
-    assert not world.collisions

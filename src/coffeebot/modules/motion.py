@@ -115,9 +115,7 @@ class MotionModule(Module):
         self.costmap = LocalCostmap(
             self.cfg, config.tof.sensors, self.footprint, config.tof.effective_half_fov_deg
         )
-        self.controller = MotionController(
-            self.cfg, plan, self.costmap, self.footprint, pivot_mm=config.motor.axle_x_mm
-        )
+        self.controller = MotionController(self.cfg, plan, self.costmap, self.footprint)
         self.collision_health: HealthStatus | None = None
         self._board: ModuleBoard | None = None
         self._stopping = False

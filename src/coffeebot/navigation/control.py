@@ -62,38 +62,16 @@ class SpeedProfile:
         return current_mm_s + max(-limit, min(limit, target_mm_s - current_mm_s))
 
 
-MIN_PEEL_DEG = 3.0
-"""Close to a wall the robot still peels away from it this steeply: about the front axle it
-swings the rear corner ~25 mm towards the wall, and the forward motion then opens the gap."""
-
-
-def rear_swing_limit_deg(gap_mm: float, reach_mm: float, clearance_mm: float) -> float:
-    """The steepest heading away from a wall ``gap_mm`` beside the body (parallel to it) that
-    keeps the rear corner ``clearance_mm`` off it: turning about the front axle swings that
-    corner, ``reach_mm`` behind the axle, towards the wall by ``reach * sin(angle)``."""
-    room = max(0.0, gap_mm - clearance_mm)
-    return max(MIN_PEEL_DEG, math.degrees(math.asin(min(1.0, room / reach_mm))))
-
-
-def lane_heading_deg(
-    travel_deg: float,
-    lateral_error_mm: float,
-    cfg: MotionConfig,
-    max_left_deg: float | None = None,
-    max_right_deg: float | None = None,
-) -> float:
+def lane_heading_deg(travel_deg: float, lateral_error_mm: float, cfg: MotionConfig) -> float:
     """Heading that steers back onto the lane: ``lateral_error`` is lane minus position,
     positive to the left of travel.
 
     It aims at the lane point ``lane_lookahead_mm`` ahead. Linearised, the lateral error then
     obeys ``e'' + h e' + (v h / L) e = 0`` (``h`` the heading gain, ``L`` the lookahead), so
     the default 800 mm keeps the loop well damped at cruise speed (about 0.9) instead of
-    weaving on every centimetre of pose noise. ``max_left_deg``/``max_right_deg`` cap the
-    angle further (see :func:`rear_swing_limit_deg`)."""
+    weaving on every centimetre of pose noise."""
     offset = math.degrees(math.atan2(lateral_error_mm, cfg.lane_lookahead_mm))
-    left = min(cfg.max_lane_angle_deg, max_left_deg or math.inf)
-    right = min(cfg.max_lane_angle_deg, max_right_deg or math.inf)
-    return travel_deg + max(-right, min(left, offset))
+    return travel_deg + max(-cfg.max_lane_angle_deg, min(cfg.max_lane_angle_deg, offset))
 
 
 def turn_rate_dps(heading_deg: float, wanted_deg: float, cfg: MotionConfig) -> float:

@@ -23,7 +23,6 @@ from coffeebot.navigation.control import (
     SpeedProfile,
     lane_heading_deg,
     ramp,
-    rear_swing_limit_deg,
     turn_rate_dps,
 )
 from coffeebot.navigation.costmap import Footprint, LocalCostmap
@@ -59,16 +58,9 @@ class MotionController:
     """Turns the current instruction and pose into a speed and a yaw rate."""
 
     def __init__(
-        self,
-        cfg: MotionConfig,
-        plan: FloorPlan,
-        costmap: LocalCostmap,
-        footprint: Footprint,
-        pivot_mm: float = 0.0,
+        self, cfg: MotionConfig, plan: FloorPlan, costmap: LocalCostmap, footprint: Footprint
     ) -> None:
         self.cfg = cfg
-        self.pivot_mm = pivot_mm
-        """The driven axle's distance ahead of the centre: the body turns about it."""
         self.plan = plan
         self.costmap = costmap
         self.footprint = footprint
@@ -288,18 +280,7 @@ class MotionController:
             return self._avoid(
                 ins, floor, pose, self._detour, direction, target, now, dt, limit, remaining
             )
-        # Turning towards the lane swings the rear corner towards the other wall: near a
-        # wall (after going round something) peel away from it no faster than the gap allows.
-        half_free = floor.hallway.width_mm / 2 - self.footprint.width_mm / 2
-        left_gap, right_gap = half_free - d * direction, half_free + d * direction
-        reach = self.footprint.length_mm / 2 + self.pivot_mm
-        heading = lane_heading_deg(
-            travel,
-            (lane - d) * direction,
-            cfg,
-            max_left_deg=rear_swing_limit_deg(right_gap, reach, cfg.side_clearance_mm),
-            max_right_deg=rear_swing_limit_deg(left_gap, reach, cfg.side_clearance_mm),
-        )
+        heading = lane_heading_deg(travel, (lane - d) * direction, cfg)
         return self._command(
             target, turn_rate_dps(pose.heading_deg, heading, cfg), dt, status, limit
         )
