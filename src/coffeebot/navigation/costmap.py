@@ -288,10 +288,10 @@ class LocalCostmap:
 
         A path is admissible if no pose on it is lethal. From a start that is itself inside
         a lethal zone (the obstacle came closer, was seen late, or the pose estimate moved),
-        a path that ends no nearer to that zone than it starts, and never comes within half
-        the present gap on the way (a turn swings the rear towards it first), is admissible
-        too, as long as it keeps clear of everything else: otherwise the robot could never
-        get out.
+        a path that never comes nearer to that obstacle is admissible too; near a wall, one
+        that ends no nearer to it and never comes within half the present gap on the way (a
+        turn swings the rear towards it first). Either must keep clear of everything else:
+        otherwise the robot could never get out.
         """
         gaps = self.obstacle_gaps(xs, ys, thetas, now, footprint)
         walls = self.wall_gaps(xs, ys, thetas)
@@ -305,7 +305,8 @@ class LocalCostmap:
         if not (inside_obstacle or inside_wall):
             return np.isfinite(worst), worst
         if inside_obstacle:
-            obstacle_ok = _escapes(gaps, here_gap)
+            # Never nearer to an obstacle: it may be a person, and the side stop is close.
+            obstacle_ok = gaps.min(axis=1) >= here_gap - 1.0
         else:
             obstacle_ok = np.isfinite(self.cost(gaps, np.full_like(walls, math.inf))).all(axis=1)
         if inside_wall:
