@@ -94,6 +94,17 @@ class LocalCostmap:
         self.sensors = list(sensors)
         self.footprint = footprint
         self.half_fov_deg = half_fov_deg
+        self.body = Footprint(footprint.length_mm, footprint.width_mm)
+        """The body alone, without the zone kept free ahead for driving."""
+        half_l, half_w = footprint.length_mm / 2.0, footprint.width_mm / 2.0
+        self._corners = np.array(
+            [[half_l, half_w], [half_l, -half_w], [-half_l, half_w], [-half_l, -half_w]]
+        )
+        self._spread = np.radians(np.linspace(-half_fov_deg, half_fov_deg, RAYS_PER_CONE))
+        """Ray offsets across a cone, for clearing and marking."""
+        widest = half_fov_deg + cfg.wall_heading_tolerance_deg
+        self._explain = np.radians(np.linspace(-widest, widest, EXPLAIN_RAYS))
+        """Ray offsets across the widened cone, for asking whether a wall explains a reading."""
         self.res = cfg.costmap_resolution_mm
         self.n = math.ceil(cfg.costmap_size_mm / self.res)
         self.floor: Floor | None = None
@@ -157,9 +168,6 @@ class LocalCostmap:
         """Clear each cone up to its reading and mark the arc at the reading."""
         self._recentre(floor, x_mm, y_mm)
         readings = {r.sensor: r for r in scan.readings}
-        spread = np.radians(np.linspace(-self.half_fov_deg, self.half_fov_deg, RAYS_PER_CONE))
-        widest = self.half_fov_deg + self.cfg.wall_heading_tolerance_deg
-        explain = np.radians(np.linspace(-widest, widest, EXPLAIN_RAYS))
         for sensor in self.sensors:
             reading = readings.get(sensor.id)
             if reading is None or not reading.healthy:
@@ -171,7 +179,7 @@ class LocalCostmap:
             else:
                 continue
             sx, sy, look = sensor_origin(x_mm, y_mm, heading_deg, sensor)
-            angles = math.radians(look) + spread
+            angles = math.radians(look) + self._spread
             free = MAX_MARK_MM if distance is None else min(distance, MAX_MARK_MM) - self.res
             if free > 0:
                 steps = np.arange(0.0, free, self.res / 2.0)
@@ -181,7 +189,7 @@ class LocalCostmap:
                 self.clear_t[i, j] = now
             if distance is None or distance > MAX_MARK_MM:
                 continue
-            wall = expected_range_mm(floor, sx, sy, math.radians(look) + explain).min()
+            wall = expected_range_mm(floor, sx, sy, math.radians(look) + self._explain).min()
             if wall <= distance + self.cfg.wall_margin_mm:
                 continue  # the plan's walls explain the reading
             hx = sx + distance * np.cos(angles)
@@ -254,12 +262,9 @@ class LocalCostmap:
         c, s = np.cos(th)[:, None], np.sin(th)[:, None]
         ends_x = np.concatenate([seg[:, 0], seg[:, 2]])[None, :] - x[:, None]
         ends_y = np.concatenate([seg[:, 1], seg[:, 3]])[None, :] - y[:, None]
-        body = Footprint(self.footprint.length_mm, self.footprint.width_mm)
-        from_ends = body.gap_mm(c * ends_x + s * ends_y, -s * ends_x + c * ends_y).min(axis=1)
-        half_l, half_w = body.length_mm / 2.0, body.width_mm / 2.0
-        corners = np.array(
-            [[half_l, half_w], [half_l, -half_w], [-half_l, half_w], [-half_l, -half_w]]
-        )
+        from_ends = self.body.gap_mm(c * ends_x + s * ends_y, -s * ends_x + c * ends_y)
+        from_ends = from_ends.min(axis=1)
+        corners = self._corners
         cx = (x[:, None] + c * corners[:, 0] - s * corners[:, 1]).reshape(-1, 1)
         cy = (y[:, None] + s * corners[:, 0] + c * corners[:, 1]).reshape(-1, 1)
         from_corners = segment_distances(seg, cx, cy).min(axis=1).reshape(-1, 4).min(axis=1)

@@ -370,8 +370,9 @@ class MotionController:
         xs = np.full((1, TURN_CHECK_STEPS), pose.x_mm)
         ys = np.full((1, TURN_CHECK_STEPS), pose.y_mm)
         start = (pose.x_mm, pose.y_mm, math.radians(pose.heading_deg))
-        body = Footprint(self.footprint.length_mm, self.footprint.width_mm)
-        admissible, _ = self.costmap.admissible(xs, ys, headings[None, :], start, now, body)
+        admissible, _ = self.costmap.admissible(
+            xs, ys, headings[None, :], start, now, self.costmap.body
+        )
         return bool(admissible[0])
 
     def _wait_distance(self) -> float:
