@@ -35,6 +35,7 @@ from coffeebot.messages import (
     CollisionStatus,
     EStop,
     HealthStatus,
+    MotionStatus,
     MotorCommand,
     SafetyState,
 )
@@ -179,17 +180,9 @@ class MotionModule(Module):
             # controller wants (into a door, away from a jamb, round a box) may clear it.
             command = self.controller.step(ins, state.msg.pose, now, dt, 0.0)
             if abs(command.yaw_rate_dps) >= MIN_TURN_DPS:
-                left, right = wheel_speeds(
-                    0.0, command.yaw_rate_dps, self.config.motor.wheel_base_mm
-                )
                 reason = f"turning on the spot; {gate.reason}"
-                ctx.board.publish(
-                    MOTOR_COMMAND, MotorCommand(left_mm_s=left, right_mm_s=right, reason=reason)
-                )
-                ctx.board.publish(
-                    MOTION_STATUS,
-                    self.controller.safety_status(command.status.instruction_id, now, reason),
-                )
+                status = self.controller.safety_status(command.status.instruction_id, now, reason)
+                self._send(ctx.board, 0.0, command.yaw_rate_dps, reason, status)
                 return
         if gate.stop or state is None:
             self.controller.halt()
@@ -200,16 +193,23 @@ class MotionModule(Module):
             )
             return
         command = self.controller.step(ins, state.msg.pose, now, dt, gate.speed_limit_mm_s)
-        left, right = wheel_speeds(
-            command.speed_mm_s, command.yaw_rate_dps, self.config.motor.wheel_base_mm
-        )
         reason = command.status.state.value
         if gate.speed_limit_mm_s < self.cfg.cruise_speed_mm_s:
             reason = f"{reason}; {gate.reason}"
-        ctx.board.publish(
-            MOTOR_COMMAND, MotorCommand(left_mm_s=left, right_mm_s=right, reason=reason)
-        )
-        ctx.board.publish(MOTION_STATUS, command.status)
+        self._send(ctx.board, command.speed_mm_s, command.yaw_rate_dps, reason, command.status)
+
+    def _send(
+        self,
+        board: ModuleBoard,
+        speed_mm_s: float,
+        yaw_rate_dps: float,
+        reason: str,
+        status: MotionStatus,
+    ) -> None:
+        """One motor command (with the reason it was allowed) and the status that goes with it."""
+        left, right = wheel_speeds(speed_mm_s, yaw_rate_dps, self.config.motor.wheel_base_mm)
+        board.publish(MOTOR_COMMAND, MotorCommand(left_mm_s=left, right_mm_s=right, reason=reason))
+        board.publish(MOTION_STATUS, status)
 
     async def run(self, ctx: ModuleContext) -> None:
         self._board = ctx.board
