@@ -40,12 +40,17 @@ AT_THE_DOOR_MM = 100.0
 target is a 95th percentile, measured over many runs by bench/delivery.py."""
 
 
+async def run(name: str) -> dict:
+    """The report of ``scenarios/NAME.toml`` run through the whole daemon."""
+    config = load_robot_config(BOARD)
+    scenario, plan = load_scenario(ROOT / "scenarios" / f"{name}.toml")
+    return await run_scenario(config, scenario, plan, speed=SPEED)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", DELIVERIES)
 async def test_delivers_without_touching_anything(name: str) -> None:
-    config = load_robot_config(BOARD)
-    scenario, plan = load_scenario(ROOT / "scenarios" / f"{name}.toml")
-    report = await run_scenario(config, scenario, plan, speed=SPEED)
+    report = await run(name)
     assert report["collisions"] == []
     assert report["orders"], "the scenario placed no order"
     for order in report["orders"]:
@@ -56,9 +61,7 @@ async def test_delivers_without_touching_anything(name: str) -> None:
 @pytest.mark.slow
 @pytest.mark.parametrize("name", NOT_YET_RELIABLE)
 async def test_touches_nothing_and_a_held_robot_says_why(name: str) -> None:
-    config = load_robot_config(BOARD)
-    scenario, plan = load_scenario(ROOT / "scenarios" / f"{name}.toml")
-    report = await run_scenario(config, scenario, plan, speed=SPEED)
+    report = await run(name)
     assert report["collisions"] == []
     [order] = report["orders"]
     if order["status"] == "delivered":
