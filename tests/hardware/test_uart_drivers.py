@@ -11,7 +11,7 @@ from coffeebot.hardware.motor import Boot, MotorController, decode, encode, pars
 from coffeebot.hardware.serial_port import LineReader, SerialPort
 from coffeebot.messages import Odometry
 from coffeebot.sim.dwm1001 import SimDwm1001
-from coffeebot.sim.motor_controller import SimMotorController
+from coffeebot.sim.motor_controller import IdealDrive, SimMotorController
 
 Opener = Callable[[str], SerialPort]
 
@@ -188,3 +188,19 @@ def test_motor_identify_and_garbage_counted(
     ctrl.port.write(b"V,100,100*00\n\xff\xfe\n")
     telemetry(ctrl, lambda o: sim_motor.rx_errors == 2)
     assert sim_motor.commands == []  # a bad line never moves the motors
+
+
+def test_motor_watchdog_is_a_hardware_timer_the_firmware_thread_cannot_delay() -> None:
+    """The watchdog stops the drive at its deadline even when the firmware's tick never
+    runs (its thread starved): on the real board it is a separate hardware timer."""
+    now = [0.0]
+    drive = IdealDrive(ticks_per_mm=1.0)
+    sim = SimMotorController(drive, clock=lambda: now[0])  # not started: no ticks at all
+    try:
+        sim.on_data(encode("V", 300, 300))
+        now[0] = 2.0
+        sample = drive.sample(now[0])
+    finally:
+        sim.close()
+    assert (sample.left_ticks, sample.right_ticks) == (60, 60)  # 0.2 s at 300 mm/s
+    assert (sample.left_mm_s, sample.right_mm_s) == (0.0, 0.0)

@@ -29,6 +29,23 @@ def test_equal_motors_drive_straight(tiny_plan: FloorPlan) -> None:
     assert world.pose.x_mm == pytest.approx(1000 + 250 + 500 * 3.0, abs=1.0)
 
 
+def test_the_motor_controllers_watchdog_stops_the_wheels_within_one_long_step(
+    tiny_plan: FloorPlan,
+) -> None:
+    """A set-point holds only until its watchdog deadline, in the world's own time: a world
+    stepped late by two seconds (the firmware's thread starved on a loaded machine) must not
+    drive on for those two seconds."""
+    robot = RobotSpec(right_motor_gain=1.0, slip_sigma=0.0)
+    world = World(tiny_plan, robot, floor=1, pose=Pose(1000, 0, 0))
+    _drive(world, 1.0, 300, 300)
+    start = world.pose.x_mm
+    world.command_wheels(300, 300, until_s=world.t_s + 0.2)
+    world.step(2.0)
+    # 0.2 s at 300 mm/s, then braking at 500 mm/s^2: 60 + 90 mm, not 600.
+    assert world.pose.x_mm - start == pytest.approx(150.0, abs=2.0)
+    assert world.wheel_speeds_mm_s == (0.0, 0.0)
+
+
 def test_unequal_motors_drift_towards_the_weaker_side(tiny_plan: FloorPlan) -> None:
     robot = RobotSpec(right_motor_gain=0.98, slip_sigma=0.0)
     world = World(tiny_plan, robot, floor=1, pose=Pose(1000, 0, 0))

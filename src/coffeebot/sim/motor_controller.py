@@ -9,6 +9,11 @@ check what the robot asked for and when the watchdog stopped it.
 
 Fault: ``silent`` makes the firmware hang: nothing is read or sent, and the watchdog (a
 separate hardware timer on the real board) stops the motors 200 ms later.
+
+Because that timer is hardware, each set-point reaches the drive with the moment it expires
+(``until``) and the drive stops by itself then: the motors stop on time in the drive's own
+time even when the thread running this firmware is late (on a loaded machine), and the tick
+only reports the trip.
 """
 
 from __future__ import annotations
@@ -48,7 +53,10 @@ class DriveSample(NamedTuple):
 class Drive(Protocol):
     """The motors and sensors behind the controller; ``now`` is the controller's clock."""
 
-    def command(self, left_mm_s: float, right_mm_s: float, now: float) -> None: ...
+    def command(
+        self, left_mm_s: float, right_mm_s: float, now: float, until: float = math.inf
+    ) -> None:
+        """Drive towards the set-point from ``now``; at ``until`` the watchdog stops it."""
 
     def sample(self, now: float) -> DriveSample: ...
 
@@ -66,6 +74,7 @@ class IdealDrive:
         self.track_mm = track_mm
         self.drift = drift
         self._setpoint = (0.0, 0.0)
+        self._until = math.inf
         self._distance_mm = [0.0, 0.0]
         self._last: float | None = None
 
@@ -73,14 +82,19 @@ class IdealDrive:
         return self._setpoint[0] * self.drift[0], self._setpoint[1] * self.drift[1]
 
     def _integrate(self, now: float) -> None:
-        dt = 0.0 if self._last is None else now - self._last
+        dt = 0.0 if self._last is None else min(now, self._until) - self._last
         self._last = now
         for i, v in enumerate(self._speeds()):
-            self._distance_mm[i] += v * dt
+            self._distance_mm[i] += v * max(0.0, dt)
+        if now >= self._until:
+            self._setpoint, self._until = (0.0, 0.0), math.inf
 
-    def command(self, left_mm_s: float, right_mm_s: float, now: float) -> None:
+    def command(
+        self, left_mm_s: float, right_mm_s: float, now: float, until: float = math.inf
+    ) -> None:
         self._integrate(now)
         self._setpoint = (left_mm_s, right_mm_s)
+        self._until = until
 
     def sample(self, now: float) -> DriveSample:
         self._integrate(now)
@@ -133,9 +147,9 @@ class SimMotorController(PtyDevice):
     def watchdog_tripped(self) -> bool:
         return self._tripped
 
-    def _set(self, left: int, right: int, now: float) -> None:
+    def _set(self, left: int, right: int, now: float, until: float = math.inf) -> None:
         self._setpoint = (left, right)
-        self.drive.command(left, right, now)
+        self.drive.command(left, right, now, until)
 
     def on_data(self, data: bytes) -> None:
         with self._lock:
@@ -167,7 +181,7 @@ class SimMotorController(PtyDevice):
             self.send(encode("I", FIRMWARE, WATCHDOG_MS, TELEMETRY_HZ))
             return
         self.commands.append(Command(now, kind, left, right))
-        self._set(left, right, now)
+        self._set(left, right, now, until=now + WATCHDOG_MS / 1000.0)
         self._last_command = now
         self._tripped = False
 

@@ -51,9 +51,11 @@ class WorldDrive:
     def __init__(self, sim: Simulation) -> None:
         self.sim = sim
 
-    def command(self, left_mm_s: float, right_mm_s: float, now: float) -> None:
+    def command(
+        self, left_mm_s: float, right_mm_s: float, now: float, until: float = math.inf
+    ) -> None:
         with self.sim.world_time() as world:
-            world.command_wheels(left_mm_s, right_mm_s)
+            world.command_wheels(left_mm_s, right_mm_s, until_s=self.sim.world_t(until, now))
 
     def sample(self, now: float) -> DriveSample:
         with self.sim.world_time() as world:
@@ -146,6 +148,12 @@ class Simulation:
             record = fault.update(self)
             if record is not None:
                 self.truth.faults.append(record)
+
+    def world_t(self, clock_t: float, now: float) -> float:
+        """The world's time at clock time ``clock_t`` (``now`` is the clock's present)."""
+        if self._origin is None:  # not stepped yet: the world's t = 0 is about now
+            return self.world.t_s + (clock_t - now)
+        return clock_t - self._origin
 
     def place_robot(self, pose: Pose, floor: int | None = None) -> None:
         """Move the robot without driving: the start of a run, an elevator ride."""

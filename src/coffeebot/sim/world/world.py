@@ -87,6 +87,8 @@ class World:
         self._contact_radius = math.hypot(robot.length_mm, robot.width_mm) / 2 + 1.0
         self.body = RobotBody(robot, pose)
         self.t_s = 0.0
+        self._command_until = math.inf
+        """The motor controller's watchdog deadline for the wheel set-point (world time)."""
         self.collisions: list[Collision] = []
         self._touching: set[str] = set()
         self._ranges: np.ndarray | None = None
@@ -147,6 +149,8 @@ class World:
         n = max(1, math.ceil(dt_s / PHYSICS_DT_S - 1e-9))
         h = dt_s / n
         for _ in range(n):
+            if self.t_s >= self._command_until:
+                self.command_wheels(0.0, 0.0)
             self.t_s += h
             proposed = self.body.propose(h, self._slip_rng)
             contacts = self._contacts(proposed.x, proposed.y, proposed.theta)
@@ -237,9 +241,13 @@ class World:
 
     # --- motor controller ------------------------------------------------------------------
 
-    def command_wheels(self, left_mm_s: float, right_mm_s: float) -> None:
-        """Wheel speeds the motor controller is driving towards (nominal mm/s)."""
+    def command_wheels(
+        self, left_mm_s: float, right_mm_s: float, until_s: float = math.inf
+    ) -> None:
+        """Wheel speeds the motor controller is driving towards (nominal mm/s), until the
+        world's time ``until_s``, when its watchdog stops them."""
         self.body.command(left_mm_s, right_mm_s)
+        self._command_until = until_s
 
     @property
     def encoder_ticks(self) -> tuple[int, int]:
