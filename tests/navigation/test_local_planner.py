@@ -1,4 +1,5 @@
-"""The costmap's wall gaps and the dynamic window's way out of a lethal zone."""
+"""The costmap's marking and clearing, its wall gaps and the dynamic window's way out of a
+lethal zone."""
 
 from __future__ import annotations
 
@@ -17,6 +18,7 @@ from coffeebot.messages import (
 )
 from coffeebot.modules.motion import MotionModule
 from coffeebot.navigation.dwa import DynamicWindow
+from coffeebot.perception.geometry import sensor_origin
 
 FLOOR = PLAN.floor(2)
 HALF_WIDTH = FLOOR.hallway.width_mm / 2
@@ -26,6 +28,46 @@ def costmap_at(x: float, y: float):
     costmap = MotionModule(CONFIG, PLAN).costmap
     costmap.reset(FLOOR, x, y)
     return costmap
+
+
+def one_sensor_scan(sensor: int, distance_mm: float | None) -> RangeScan:
+    """A scan of one sensor: a reading at ``distance_mm``, or nothing in range."""
+    reading = (
+        RangeReading(sensor=sensor, status=ReadingStatus.OUT_OF_BOUNDS)
+        if distance_mm is None
+        else RangeReading(sensor=sensor, status=ReadingStatus.VALID, distance_mm=distance_mm)
+    )
+    return RangeScan(cycle_start_s=0.0, cycle_time_s=0.05, readings=[reading])
+
+
+def marked_near(costmap, x: float, y: float, now: float) -> bool:
+    xs, ys, _ = costmap.obstacles(now)
+    return bool(np.any(np.hypot(xs - x, ys - y) < costmap.res))
+
+
+def test_an_empty_cone_clears_its_middle_but_not_its_edge() -> None:
+    """The pose's heading may be a few degrees off, so a cone that sees nothing clears only
+    its middle: an obstacle near the edge of where the cone is thought to look may be just
+    outside where it really looks (a box beside the robot, turning away from it, was
+    forgotten that way and the robot turned back into it)."""
+    x, y = FLOOR.from_hallway(13000.0, 0.0)
+    heading = FLOOR.hallway.heading_deg
+    costmap = costmap_at(x, y)
+    sensor = next(s for s in CONFIG.tof.sensors if s.id == 3)
+    costmap.update(one_sensor_scan(3, 700), FLOOR, x, y, heading, 0.0)
+    sx, sy, look = sensor_origin(x, y, heading, sensor)
+    ahead = (sx + 700 * math.cos(math.radians(look)), sy + 700 * math.sin(math.radians(look)))
+    assert marked_near(costmap, *ahead, 0.0)
+    marked = costmap.obstacles(0.0)[0].size
+    # Turned 8 degrees away: what was straight ahead is now inside the 13.5 degree cone but
+    # outside the part of it that clears.
+    sx, sy, look = sensor_origin(x, y, heading + 8.0, sensor)
+    off_axis = abs(math.degrees(math.atan2(ahead[1] - sy, ahead[0] - sx)) - look)
+    half_fov = CONFIG.tof.effective_half_fov_deg
+    assert half_fov - CONFIG.motion.clear_margin_deg < off_axis < half_fov
+    costmap.update(one_sensor_scan(3, None), FLOOR, x, y, heading + 8.0, 0.1)
+    assert marked_near(costmap, *ahead, 0.1)
+    assert costmap.obstacles(0.1)[0].size < marked  # the middle of the cone was cleared
 
 
 def test_a_turned_body_reaches_the_wall_with_a_corner() -> None:

@@ -4,8 +4,10 @@
 around the robot, marked and cleared from the time-of-flight readings the way sonar costmaps
 are: a VL53L1X reports the nearest return within its cone, so a reading marks the whole arc
 of the cone at that range as occupied and clears the cone in front of it (everything nearer
-is known free). A reading the plan's walls explain (some ray of the cone, widened by
-``wall_heading_tolerance_deg`` for the pose's heading error, meets a wall within
+is known free). Clearing uses the cone narrowed by ``clear_margin_deg`` on each side: the
+pose's heading can be a few degrees off, and the edge of the cone as placed would then sweep
+cells the sensor did not look at. A reading the plan's walls explain (some ray of the cone,
+widened by ``wall_heading_tolerance_deg`` for the pose's heading error, meets a wall within
 ``wall_margin_mm`` of the range) belongs to the static layer and marks nothing. Marks the
 robot does not see again expire after ``obstacle_memory_s``.
 
@@ -101,7 +103,10 @@ class LocalCostmap:
             [[half_l, half_w], [half_l, -half_w], [-half_l, half_w], [-half_l, -half_w]]
         )
         self._spread = np.radians(np.linspace(-half_fov_deg, half_fov_deg, RAYS_PER_CONE))
-        """Ray offsets across a cone, for clearing and marking."""
+        """Ray offsets across a cone, for marking."""
+        narrowed = max(0.0, half_fov_deg - cfg.clear_margin_deg)
+        self._clear_spread = np.radians(np.linspace(-narrowed, narrowed, RAYS_PER_CONE))
+        """Ray offsets across the narrowed cone, for clearing."""
         widest = half_fov_deg + cfg.wall_heading_tolerance_deg
         self._explain = np.radians(np.linspace(-widest, widest, EXPLAIN_RAYS))
         """Ray offsets across the widened cone, for asking whether a wall explains a reading."""
@@ -179,12 +184,12 @@ class LocalCostmap:
             else:
                 continue
             sx, sy, look = sensor_origin(x_mm, y_mm, heading_deg, sensor)
-            angles = math.radians(look) + self._spread
             free = MAX_MARK_MM if distance is None else min(distance, MAX_MARK_MM) - self.res
             if free > 0:
                 steps = np.arange(0.0, free, self.res / 2.0)
-                fx = sx + np.outer(np.cos(angles), steps).ravel()
-                fy = sy + np.outer(np.sin(angles), steps).ravel()
+                clear = math.radians(look) + self._clear_spread
+                fx = sx + np.outer(np.cos(clear), steps).ravel()
+                fy = sy + np.outer(np.sin(clear), steps).ravel()
                 i, j = self._cells(fx, fy)
                 self.clear_t[i, j] = now
             if distance is None or distance > MAX_MARK_MM:
@@ -192,6 +197,7 @@ class LocalCostmap:
             wall = expected_range_mm(floor, sx, sy, math.radians(look) + self._explain).min()
             if wall <= distance + self.cfg.wall_margin_mm:
                 continue  # the plan's walls explain the reading
+            angles = math.radians(look) + self._spread
             hx = sx + distance * np.cos(angles)
             hy = sy + distance * np.sin(angles)
             i, j = self._cells(hx, hy)
