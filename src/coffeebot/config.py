@@ -285,12 +285,14 @@ class MotionConfig(Section):
         description="the cone is widened by this when asking whether a wall explains a "
         "reading: at a grazing wall one degree of heading error moves the return ~100 mm",
     )
-    clear_margin_deg: float = Field(
-        4.0,
+    clear_heading_sigmas: float = Field(
+        2.0,
         ge=0,
-        description="the cone is narrowed by this on each side when clearing: with the pose's "
-        "heading a few degrees off, the full cone's edge would sweep the cells of an obstacle "
-        "the sensor did not look at, and the planner would forget it",
+        description="a cone clears only where it looks for certain: narrowed on each side by "
+        "this many of the pose's heading sigmas, plus what the robot turns in pose_lag_s",
+    )
+    pose_lag_s: float = Field(
+        0.1, ge=0, description="how far the pose may lag the sensors while turning"
     )
     side_clearance_mm: float = Field(
         100.0,

@@ -77,6 +77,21 @@ def test_goes_around_a_box_with_the_shipped_collision_margins() -> None:
     assert run.done
 
 
+def test_goes_around_a_mail_cart_seen_only_by_its_corner_bars() -> None:
+    """At the sensors' height a 900 mm mail cart is four thin corner bars: the detour lane is
+    chosen from the near pair and moved out if the far pair turns out nearer the lane; back
+    past it, the robot returns to its lane without touching anything."""
+    cx, cy = FLOOR.from_hallway(17000, -580)
+    cart = ObstacleSpec(id="cart", kind="mail_cart", floor=2, x_mm=cx, y_mm=cy)
+    world = world_at(13000, LANE, [cart])
+    run = drive(world, lane(21000), max_time_s=120)
+    assert not world.collisions
+    assert MotionState.AVOIDING in run.states
+    assert run.done
+    s, d = FLOOR.to_hallway(world.pose.x_mm, world.pose.y_mm)
+    assert abs(s - 21000) <= CONFIG.motion.stop_tolerance_mm and abs(d - LANE) < 100
+
+
 def test_regains_the_lane_without_weaving() -> None:
     """Started 200 mm off the lane, the robot converges on it and does not swing past it by
     more than pose noise would: the lateral loop is well damped."""

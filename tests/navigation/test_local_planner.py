@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from helpers import CONFIG, PLAN
 
 from coffeebot.messages import (
@@ -17,7 +18,7 @@ from coffeebot.messages import (
     ReadingStatus,
 )
 from coffeebot.modules.motion import MotionModule
-from coffeebot.navigation.dwa import DynamicWindow
+from coffeebot.navigation.dwa import DynamicWindow, rollout
 from coffeebot.perception.geometry import sensor_origin
 
 FLOOR = PLAN.floor(2)
@@ -45,11 +46,12 @@ def marked_near(costmap, x: float, y: float, now: float) -> bool:
     return bool(np.any(np.hypot(xs - x, ys - y) < costmap.res))
 
 
-def test_an_empty_cone_clears_its_middle_but_not_its_edge() -> None:
+def test_an_empty_cone_clears_only_where_it_looks_whatever_the_heading_error() -> None:
     """The pose's heading may be a few degrees off, so a cone that sees nothing clears only
-    its middle: an obstacle near the edge of where the cone is thought to look may be just
-    outside where it really looks (a box beside the robot, turning away from it, was
-    forgotten that way and the robot turned back into it)."""
+    the part it looks through whatever the error: an obstacle near the edge of where the
+    cone is thought to look may be just outside where it really looks (a box beside the
+    robot, turning away from it, was forgotten that way and the robot turned back into
+    it)."""
     x, y = FLOOR.from_hallway(13000.0, 0.0)
     heading = FLOOR.hallway.heading_deg
     costmap = costmap_at(x, y)
@@ -59,15 +61,32 @@ def test_an_empty_cone_clears_its_middle_but_not_its_edge() -> None:
     ahead = (sx + 700 * math.cos(math.radians(look)), sy + 700 * math.sin(math.radians(look)))
     assert marked_near(costmap, *ahead, 0.0)
     marked = costmap.obstacles(0.0)[0].size
-    # Turned 8 degrees away: what was straight ahead is now inside the 13.5 degree cone but
-    # outside the part of it that clears.
+    # Turned 8 degrees away with the heading known to 4 degrees: what was straight ahead is
+    # now inside the 13.5 degree cone as placed, but the cone may really look 4 degrees
+    # further away, past it.
     sx, sy, look = sensor_origin(x, y, heading + 8.0, sensor)
     off_axis = abs(math.degrees(math.atan2(ahead[1] - sy, ahead[0] - sx)) - look)
     half_fov = CONFIG.tof.effective_half_fov_deg
-    assert half_fov - CONFIG.motion.clear_margin_deg < off_axis < half_fov
-    costmap.update(one_sensor_scan(3, None), FLOOR, x, y, heading + 8.0, 0.1)
+    assert half_fov - 4.0 < off_axis < half_fov
+    costmap.update(one_sensor_scan(3, None), FLOOR, x, y, heading + 8.0, 0.1, 4.0)
     assert marked_near(costmap, *ahead, 0.1)
     assert costmap.obstacles(0.1)[0].size < marked  # the middle of the cone was cleared
+    # Known to a degree, the whole cone clears: the edge of an arc marked by one reading is
+    # no obstacle for good.
+    costmap.update(one_sensor_scan(3, None), FLOOR, x, y, heading + 8.0, 0.2, 1.0)
+    assert not marked_near(costmap, *ahead, 0.2)
+
+
+def test_planned_arcs_turn_the_body_about_its_axle() -> None:
+    """A quarter turn on the spot swings the centre round the axle 150 mm ahead of it (the
+    rear corners sweep that much further out than a turn about the centre would take
+    them); a straight line at 400 mm/s moves it 400 mm in a second."""
+    xs, ys, thetas = rollout(
+        (0.0, 0.0, 0.0), np.array([0.0, 400.0]), np.array([math.pi / 2, 0.0]), np.ones(1), 150.0
+    )
+    assert (xs[0, 0], ys[0, 0]) == (pytest.approx(150.0), pytest.approx(-150.0))
+    assert thetas[0, 0] == pytest.approx(math.pi / 2)
+    assert (xs[1, 0], ys[1, 0], thetas[1, 0]) == (pytest.approx(400.0), 0.0, 0.0)
 
 
 def test_a_turned_body_reaches_the_wall_with_a_corner() -> None:
@@ -94,7 +113,7 @@ def test_too_close_to_a_wall_the_window_steers_away_instead_of_giving_up() -> No
     d = -HALF_WIDTH + CONFIG.geometry.width_mm / 2 + gap
     x, y = FLOOR.from_hallway(13000.0, d)
     costmap = costmap_at(x, y)
-    choice = DynamicWindow(CONFIG.motion).choose(
+    choice = DynamicWindow(CONFIG.motion, CONFIG.motor.axle_x_mm).choose(
         costmap,
         FLOOR,
         (x, y, FLOOR.hallway.heading_deg),
@@ -108,6 +127,29 @@ def test_too_close_to_a_wall_the_window_steers_away_instead_of_giving_up() -> No
     )
     assert choice is not None
     assert choice.speed_mm_s > 0 and choice.yaw_rate_dps > 0  # forward, turning to the left
+
+
+def test_from_a_standstill_the_window_heads_for_the_lane_instead_of_swinging_the_centre() -> None:
+    """Standing still 300 mm right of its lane in an empty hallway, the robot must not turn
+    right, away from it. A turn to the right about the axle ahead swings the centre left,
+    towards the lane, without getting anywhere: scored at the centre, that looked like the
+    best way to the lane."""
+    d = 0.0
+    x, y = FLOOR.from_hallway(13000.0, d)
+    choice = DynamicWindow(CONFIG.motion, CONFIG.motor.axle_x_mm).choose(
+        costmap_at(x, y),
+        FLOOR,
+        (x, y, FLOOR.hallway.heading_deg),
+        0.0,
+        0.0,
+        lane_mm=d + 300.0,
+        direction=1.0,
+        max_speed_mm_s=300.0,
+        dt_s=0.05,
+        now=0.0,
+    )
+    assert choice is not None
+    assert choice.yaw_rate_dps >= 0  # never to the right
 
 
 def test_seen_late_close_to_a_wide_obstacle_it_turns_out_instead_of_giving_up() -> None:

@@ -112,6 +112,7 @@ class MotionModule(Module):
                 + config.collision.hysteresis_mm
                 - config.motion.obstacle_clearance_mm,
             ),
+            axle_x_mm=config.motor.axle_x_mm,
         )
         self.costmap = LocalCostmap(
             self.cfg, config.tof.sensors, self.footprint, config.tof.effective_half_fov_deg
@@ -145,6 +146,8 @@ class MotionModule(Module):
                     pose.y_mm,
                     pose.heading_deg,
                     ctx.clock.now(),
+                    heading_error_deg=self.cfg.clear_heading_sigmas * pose.sigma_heading_deg
+                    + abs(pose.yaw_rate_dps) * self.cfg.pose_lag_s,
                 )
 
     def gate(self, ctx: ModuleContext) -> Gate:

@@ -4,8 +4,8 @@
 around the robot, marked and cleared from the time-of-flight readings the way sonar costmaps
 are: a VL53L1X reports the nearest return within its cone, so a reading marks the whole arc
 of the cone at that range as occupied and clears the cone in front of it (everything nearer
-is known free). Clearing uses the cone narrowed by ``clear_margin_deg`` on each side: the
-pose's heading can be a few degrees off, and the edge of the cone as placed would then sweep
+is known free). Clearing uses the cone narrowed on each side by the heading's possible error:
+off by a few degrees (while turning, above all), the edge of the cone as placed would sweep
 cells the sensor did not look at. A reading the plan's walls explain (some ray of the cone,
 widened by ``wall_heading_tolerance_deg`` for the pose's heading error, meets a wall within
 ``wall_margin_mm`` of the range) belongs to the static layer and marks nothing. Marks the
@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -39,9 +39,6 @@ from coffeebot.perception.geometry import sensor_origin
 
 MAX_MARK_MM = 1500.0
 """Readings beyond this are too noisy to mark (seed 000: noise above ~1000 mm in mid mode)."""
-
-RAYS_PER_CONE = 7
-"""Rays sampled across a cone when clearing and marking."""
 
 EXPLAIN_RAYS = 15
 """Rays sampled across the widened cone when asking whether the plan's walls explain a
@@ -72,6 +69,8 @@ class Footprint:
     width_mm: float
     front_extra_mm: float = 0.0
     """Kept clear ahead of the body too, so the collision module's front stop never fires."""
+    axle_x_mm: float = 0.0
+    """The driven axle, about which the body turns, this far ahead of the centre."""
 
     def gap_mm(self, local_x: np.ndarray, local_y: np.ndarray) -> np.ndarray:
         """Distance from robot-frame points to the (extended) body outline (zero inside)."""
@@ -96,21 +95,22 @@ class LocalCostmap:
         self.sensors = list(sensors)
         self.footprint = footprint
         self.half_fov_deg = half_fov_deg
-        self.body = Footprint(footprint.length_mm, footprint.width_mm)
+        self.body = replace(footprint, front_extra_mm=0.0)
         """The body alone, without the zone kept free ahead for driving."""
         half_l, half_w = footprint.length_mm / 2.0, footprint.width_mm / 2.0
         self._corners = np.array(
             [[half_l, half_w], [half_l, -half_w], [-half_l, half_w], [-half_l, -half_w]]
         )
-        self._spread = np.radians(np.linspace(-half_fov_deg, half_fov_deg, RAYS_PER_CONE))
+        self.res = cfg.costmap_resolution_mm
+        self._rays = math.ceil(math.radians(2.0 * half_fov_deg) * MAX_MARK_MM / self.res) + 1
+        """Rays across a cone, for clearing and marking: at most a cell apart out to
+        ``MAX_MARK_MM``, so a thin pole (a mail cart's corner bar) is marked where it stands,
+        not only at the rays either side of it."""
+        self._spread = np.radians(np.linspace(-half_fov_deg, half_fov_deg, self._rays))
         """Ray offsets across a cone, for marking."""
-        narrowed = max(0.0, half_fov_deg - cfg.clear_margin_deg)
-        self._clear_spread = np.radians(np.linspace(-narrowed, narrowed, RAYS_PER_CONE))
-        """Ray offsets across the narrowed cone, for clearing."""
         widest = half_fov_deg + cfg.wall_heading_tolerance_deg
         self._explain = np.radians(np.linspace(-widest, widest, EXPLAIN_RAYS))
         """Ray offsets across the widened cone, for asking whether a wall explains a reading."""
-        self.res = cfg.costmap_resolution_mm
         self.n = math.ceil(cfg.costmap_size_mm / self.res)
         self.floor: Floor | None = None
         self.origin = (0.0, 0.0)
@@ -169,9 +169,14 @@ class LocalCostmap:
         y_mm: float,
         heading_deg: float,
         now: float,
+        heading_error_deg: float = 0.0,
     ) -> None:
-        """Clear each cone up to its reading and mark the arc at the reading."""
+        """Clear each cone up to its reading and mark the arc at the reading. The pose's
+        heading may be off by ``heading_error_deg``: only the part of each cone it looks
+        through whatever the error is cleared."""
         self._recentre(floor, x_mm, y_mm)
+        narrowed = max(0.0, self.half_fov_deg - heading_error_deg)
+        clear_spread = np.radians(np.linspace(-narrowed, narrowed, self._rays))
         readings = {r.sensor: r for r in scan.readings}
         for sensor in self.sensors:
             reading = readings.get(sensor.id)
@@ -187,7 +192,7 @@ class LocalCostmap:
             free = MAX_MARK_MM if distance is None else min(distance, MAX_MARK_MM) - self.res
             if free > 0:
                 steps = np.arange(0.0, free, self.res / 2.0)
-                clear = math.radians(look) + self._clear_spread
+                clear = math.radians(look) + clear_spread
                 fx = sx + np.outer(np.cos(clear), steps).ravel()
                 fy = sy + np.outer(np.sin(clear), steps).ravel()
                 i, j = self._cells(fx, fy)

@@ -8,7 +8,9 @@ obstacle ends on it inside the horizon), and score the rest. The score rewards p
 the hallway and penalises distance from the lane, heading away from the direction of travel
 and inflated cost, so with a clear lane the best arc is the lane itself, and with an obstacle
 the best arc is the one that gets past it with the most room and rejoins the lane after.
-Only forward speeds are sampled: the robot has no sensors facing backwards.
+Only forward speeds are sampled: the robot has no sensors facing backwards. The arcs are the
+driven axle's, ahead of the body's centre: turning, the body swings about the axle, and its
+rear corners sweep further out than a turn about the centre would take them.
 """
 
 from __future__ import annotations
@@ -41,11 +43,37 @@ class DwaChoice:
     admissible: int
 
 
+def rollout(
+    pose: tuple[float, float, float],
+    speeds_mm_s: np.ndarray,
+    rates_rad_s: np.ndarray,
+    times_s: np.ndarray,
+    axle_x_mm: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Body-centre poses (x, y, heading rad; rows per command, columns per time) of a
+    differential drive turning about its axle, from ``pose`` (x, y, heading rad) holding
+    each (speed, turn rate) pair: the axle follows a circular arc (a line at zero rate)."""
+    x0, y0, h0 = pose
+    ax0, ay0 = x0 + axle_x_mm * math.cos(h0), y0 + axle_x_mm * math.sin(h0)
+    v, w = speeds_mm_s[:, None], rates_rad_s[:, None]
+    theta = h0 + w * times_s[None, :]
+    straight = np.abs(w) < 1e-6
+    radius = v / np.where(straight, 1.0, w)
+    ax = np.where(
+        straight, ax0 + v * times_s * math.cos(h0), ax0 + radius * (np.sin(theta) - math.sin(h0))
+    )
+    ay = np.where(
+        straight, ay0 + v * times_s * math.sin(h0), ay0 - radius * (np.cos(theta) - math.cos(h0))
+    )
+    return ax - axle_x_mm * np.cos(theta), ay - axle_x_mm * np.sin(theta), theta
+
+
 class DynamicWindow:
     """Chooses (speed, yaw rate) for one control period against a :class:`LocalCostmap`."""
 
-    def __init__(self, cfg: MotionConfig) -> None:
+    def __init__(self, cfg: MotionConfig, axle_x_mm: float) -> None:
         self.cfg = cfg
+        self.axle_x_mm = axle_x_mm
 
     def window(
         self, speed_mm_s: float, yaw_rate_dps: float, max_speed_mm_s: float, dt_s: float
@@ -81,25 +109,18 @@ class DynamicWindow:
         steps = max(1, round(self.cfg.dwa_horizon_s / SIM_STEP_S))
         t = SIM_STEP_S * np.arange(1, steps + 1)
         x0, y0, h0 = pose[0], pose[1], math.radians(pose[2])
-        theta = h0 + np.outer(w, t)
-        straight = np.abs(w) < 1e-6
-        safe_w = np.where(straight, 1.0, w)
-        radius = (v / safe_w)[:, None]
-        xs = np.where(
-            straight[:, None],
-            x0 + np.outer(v, t) * math.cos(h0),
-            x0 + radius * (np.sin(theta) - math.sin(h0)),
-        )
-        ys = np.where(
-            straight[:, None],
-            y0 + np.outer(v, t) * math.sin(h0),
-            y0 - radius * (np.cos(theta) - math.cos(h0)),
-        )
+        xs, ys, theta = rollout((x0, y0, h0), v, w, t, self.axle_x_mm)
         admissible, worst = costmap.admissible(xs, ys, theta, (x0, y0, h0), now)
         if not admissible.any():
             return None
-        s0 = floor.to_hallway(x0, y0)[0]
-        ends = [floor.to_hallway(x, y) for x, y in zip(xs[:, -1], ys[:, -1], strict=True)]
+        # Progress and lane are scored at the axle, which only moves along its arc: scored at
+        # the centre, a turn on the spot that swings the centre sideways would pass for
+        # moving towards the lane.
+        axle = self.axle_x_mm
+        s0 = floor.to_hallway(x0 + axle * math.cos(h0), y0 + axle * math.sin(h0))[0]
+        end_x = xs[:, -1] + axle * np.cos(theta[:, -1])
+        end_y = ys[:, -1] + axle * np.sin(theta[:, -1])
+        ends = [floor.to_hallway(x, y) for x, y in zip(end_x, end_y, strict=True)]
         s_end = np.array([e[0] for e in ends])
         d_end = np.array([e[1] for e in ends])
         travel = math.radians(floor.hallway.heading_deg + (0.0 if direction > 0 else 180.0))

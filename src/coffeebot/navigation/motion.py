@@ -4,9 +4,10 @@
 on the costmap. Then: while the obstacle has not stood still for ``static_confirm_s`` (a
 person walking, or something just seen) the robot stops short of it and waits; once it is
 static, and the instruction allows it, the Dynamic Window Approach takes over until the lane
-ahead is clear again; if no arc gets past, the robot is blocked and waits for the way to
-clear. ``drive_to`` turns towards a point, then drives to it on a held heading. ``turn``
-turns on the spot. The safety gate sits outside this class, in the module, and overrides it.
+ahead is clear again and the robot is back near its lane; if no arc gets past, the robot is
+blocked and waits for the way to clear. ``drive_to`` turns towards a point, then drives to
+it on a held heading. ``turn`` turns on the spot. The safety gate sits outside this class,
+in the module, and overrides it.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from coffeebot.navigation.control import (
     turn_rate_dps,
 )
 from coffeebot.navigation.costmap import Footprint, LocalCostmap
-from coffeebot.navigation.dwa import DynamicWindow
+from coffeebot.navigation.dwa import DynamicWindow, rollout
 from coffeebot.perception.geometry import wrap_deg
 
 AIM_BEFORE_DRIVING_DEG = 10.0
@@ -35,12 +36,18 @@ AIM_BEFORE_DRIVING_DEG = 10.0
 AIM_BEFORE_LANE_DEG = 45.0
 """``follow_lane`` facing further than this from the direction of travel turns on the spot."""
 
-DETOUR_TURN_DEG = 30.0
-"""Blocked close to a wide obstacle, the robot first turns this far towards the detour lane
-on the spot, from where the dynamic window finds arcs past it."""
+DETOUR_TURNS_DEG = (30.0, 20.0, 10.0)
+"""Blocked close to a wide obstacle, the robot first turns on the spot this far from its
+direction of travel towards the detour lane (the furthest of these the walls allow: the rear
+swings out about the axle), from where the dynamic window finds arcs past it."""
 
 TURN_CHECK_STEPS = 7
 """Headings checked along a turn on the spot before it is made."""
+
+REJOIN_MM = 100.0
+"""After going round, the dynamic window steers back to the lane until the robot is this
+close to it; lane keeping turns at up to ``max_lane_angle_deg`` without looking at the walls,
+and from a detour lane beside the far wall that swings the rear corner into it."""
 
 WAIT_ROOM_MM = 200.0
 """Room left beyond the planner's lethal zone where the robot waits in front of an obstacle,
@@ -65,7 +72,7 @@ class MotionController:
         self.costmap = costmap
         self.footprint = footprint
         self.profile = SpeedProfile.from_config(cfg)
-        self.dwa = DynamicWindow(cfg)
+        self.dwa = DynamicWindow(cfg, footprint.axle_x_mm)
         self.speed = 0.0
         self.yaw_rate = 0.0
         self._instruction_id: int | None = None
@@ -75,6 +82,8 @@ class MotionController:
         self._detour: float | None = None
         self._past: float | None = None
         """Going round: the furthest along-hallway position of the obstacle seen so far."""
+        self._rejoining = False
+        """Past the obstacle, the dynamic window is steering back to the lane."""
         self._line: float | None = None
         """``drive_to``: the direction of the line being followed, fixed at its start."""
 
@@ -135,6 +144,7 @@ class MotionController:
         if instruction.id != self._instruction_id:
             self._instruction_id = instruction.id
             self._detour = self._past = None
+            self._rejoining = False
             self._line = None
             self._state = MotionState.MOVING
             self._since = now
@@ -251,8 +261,16 @@ class MotionController:
         ahead = self._obstacle_ahead(floor, s, lane, direction, now)
         if ahead is not None:
             obstacle_s, static = ahead
-            if static and ins.avoid and self._detour is None:
-                self._detour = self._detour_lane(floor, obstacle_s, lane, direction, now)
+            if self._rejoining:  # something new in the lane: judged afresh
+                self._detour, self._rejoining = None, False
+            if static and ins.avoid:
+                # Chosen from what is seen of the obstacle, and moved out (to the nearest lane
+                # still free) when more of it shows up while going round: a long cart is seen
+                # bit by bit.
+                wanted = lane if self._detour is None else self._detour
+                free = self._detour_lane(floor, obstacle_s, wanted, direction, now)
+                if free is not None:
+                    self._detour = free
             if self._detour is not None:
                 far = obstacle_s + direction * cfg.static_tolerance_mm
                 if self._past is None or (far - self._past) * direction > 0:
@@ -273,8 +291,11 @@ class MotionController:
                     state = MotionState.MOVING
                 status = self._status(ins.id, state, now, remaining, why)
         elif self._detour is not None and self._passed(s, direction):
-            # Past it and the lane ahead is clear: lane keeping steers back in.
-            self._detour = self._past = None
+            # Past it and the lane ahead is clear: the dynamic window steers back to the lane,
+            # checking the rear's swing against the walls, until lane keeping can take over.
+            self._past = None
+            self._rejoining = abs(lane - d) > REJOIN_MM
+            self._detour = lane if self._rejoining else None
         if self._detour is not None:
             # Hold the detour lane until the body is past everything seen of the obstacle.
             return self._avoid(
@@ -345,14 +366,17 @@ class MotionController:
                 1.0, (lane - floor.to_hallway(pose.x_mm, pose.y_mm)[1]) * direction
             )
             travel = floor.hallway.heading_deg + (0.0 if direction > 0 else 180.0)
-            aim = travel + side * DETOUR_TURN_DEG
-            if abs(wrap_deg(aim - pose.heading_deg)) > self.cfg.heading_tolerance_deg and (
-                self._turn_is_free(pose, aim, now)
-            ):
-                status = self._status(
-                    ins.id, MotionState.AVOIDING, now, remaining, "turning out to go around"
-                )
-                return self._command(0.0, self._turn_rate(pose.heading_deg, aim), dt, status, limit)
+            for angle in DETOUR_TURNS_DEG:
+                aim = travel + side * angle
+                further_out = wrap_deg(aim - pose.heading_deg) * side
+                if further_out > self.cfg.heading_tolerance_deg and (
+                    self._turn_is_free(pose, aim, now)
+                ):
+                    status = self._status(
+                        ins.id, MotionState.AVOIDING, now, remaining, "turning out to go around"
+                    )
+                    rate = self._turn_rate(pose.heading_deg, aim)
+                    return self._command(0.0, rate, dt, status, limit)
             status = self._status(ins.id, MotionState.BLOCKED, now, remaining, "no way past")
             return self._command(0.0, 0.0, dt, status, limit)
         status = self._status(ins.id, MotionState.AVOIDING, now, remaining, "going around")
@@ -361,18 +385,22 @@ class MotionController:
         return Command(self.speed, self.yaw_rate, status)
 
     def _turn_is_free(self, pose: PoseEstimate, aim_deg: float, now: float) -> bool:
-        """Whether turning on the spot from the pose's heading to ``aim_deg`` is an
-        admissible path on the costmap (about the body's centre, as its footprint is). The
-        body alone counts, without the zone kept free ahead for driving: a turn on the spot
-        does not drive into anything, and the collision verdict still gates it."""
-        error = wrap_deg(aim_deg - pose.heading_deg)
-        headings = np.radians(pose.heading_deg + np.linspace(0.0, error, TURN_CHECK_STEPS))
-        xs = np.full((1, TURN_CHECK_STEPS), pose.x_mm)
-        ys = np.full((1, TURN_CHECK_STEPS), pose.y_mm)
+        """Whether turning on the spot (about the axle) from the pose's heading to
+        ``aim_deg`` is an admissible path on the costmap. The body alone counts, without the
+        zone kept free ahead for driving: a turn on the spot does not drive into anything,
+        and the collision verdict still gates it."""
+        error = math.radians(wrap_deg(aim_deg - pose.heading_deg))
         start = (pose.x_mm, pose.y_mm, math.radians(pose.heading_deg))
-        admissible, _ = self.costmap.admissible(
-            xs, ys, headings[None, :], start, now, self.costmap.body
+        # At one radian per unit time, the turn is done at time ``error``.
+        times = np.linspace(0.0, abs(error), TURN_CHECK_STEPS)
+        xs, ys, headings = rollout(
+            start,
+            np.zeros(1),
+            np.array([math.copysign(1.0, error)]),
+            times,
+            self.footprint.axle_x_mm,
         )
+        admissible, _ = self.costmap.admissible(xs, ys, headings, start, now, self.costmap.body)
         return bool(admissible[0])
 
     def _wait_distance(self) -> float:
