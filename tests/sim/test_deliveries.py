@@ -1,11 +1,10 @@
 """Whole deliveries: the scenarios in ``scenarios/`` run headless through the whole daemon.
 
-The reliable ones must deliver every order (staff load the cup once the robot is back in the
-tea room, the customer confirms pickup), touch nothing, and stop at the ordered door; the
-others must touch nothing and, when held, say why. Simulated time runs four times faster
-than the wall clock (the fastest that keeps the sensor rates real, docs/scenarios.md), so
-each test takes from a quarter of a minute to a minute and a half: they are marked ``slow``
-to be skipped with ``-m "not slow"`` while working, and run in CI.
+Each must deliver every order (staff load the cup once the robot is back in the tea room,
+the customer confirms pickup), touch nothing, and stop at the ordered door. Simulated time
+runs four times faster than the wall clock (the fastest that keeps the sensor rates real,
+docs/scenarios.md), so each test takes from a quarter of a minute to a minute and a half:
+they are marked ``slow`` to be skipped with ``-m "not slow"`` while working, and run in CI.
 """
 
 from __future__ import annotations
@@ -25,16 +24,10 @@ DELIVERIES = [
     "floor2-delivery",  # 205, empty hallway
     "floor2-far",  # 202, the other wall, far end
     "floor2-two-orders",  # 207, back into the tea room, then 204
+    "floor2-box-in-lane",  # 209, round a cardboard box standing in the lane
     "floor3-elevator",  # 305 via the elevator
     "floor3-walker",  # 308 via the elevator, a person walking towards the robot
 ]
-NOT_YET_RELIABLE = [
-    "floor2-box-in-lane",  # 209, round a cardboard box in the lane
-]
-"""Delivers when run on its own (every one of about fifteen runs), but in about half of the
-full-suite runs the detour passed the box inside the side stop's 50 mm and the robot stayed
-held (docs/navigation.md, "Known problems"). Its test checks what must hold in every run:
-nothing touched, and a delivery or, when held, the reason."""
 AT_THE_DOOR_MM = 100.0
 """Stopped at the ordered door, well inside the door's width. The +/-50 mm precision
 target is a 95th percentile, measured over many runs by bench/delivery.py."""
@@ -56,15 +49,3 @@ async def test_delivers_without_touching_anything(name: str) -> None:
     for order in report["orders"]:
         assert order["status"] == "delivered", f"{order['room']}: {order['detail']}"
         assert order["stop_error_mm"] <= AT_THE_DOOR_MM, order["room"]
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("name", NOT_YET_RELIABLE)
-async def test_touches_nothing_and_a_held_robot_says_why(name: str) -> None:
-    report = await run(name)
-    assert report["collisions"] == []
-    [order] = report["orders"]
-    if order["status"] == "delivered":
-        assert order["stop_error_mm"] <= AT_THE_DOOR_MM
-    else:
-        assert "blocked" in order["detail"], order["detail"]
