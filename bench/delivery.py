@@ -98,6 +98,7 @@ async def bench(runs: int, seed: int, speed: float) -> dict[str, Any]:
                 "detail": order["detail"],
                 "stop_error_mm": order["stop_error_mm"],
                 "collisions": len(report["collisions"]),
+                "contacts": report["collisions"],
                 "delivery_s": delivery_s,
                 "speed_mm_s": report["travelled_mm"] / report["moving_s"]
                 if report["moving_s"]
@@ -145,6 +146,12 @@ def print_table(result: dict[str, Any], elapsed: float) -> None:
     print(f"| mean speed while moving | {result['mean_speed_mm_s']} mm/s | |")
     for failed in result["failed"]:
         print(f"- not delivered: {failed['scenario']}: {failed['reason']}")
+    for r in result["rows"]:
+        for c in r["contacts"]:
+            print(
+                f"- collision: {r['scenario']}: t={c['t']} s with {c['with']} at "
+                f"{c['speed_mm_s']} mm/s, floor {c['floor']} ({c['x_mm']}, {c['y_mm']})"
+            )
     print(f"\n(elapsed {elapsed:.1f} s)")
 
 

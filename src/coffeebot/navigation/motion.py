@@ -265,10 +265,11 @@ class MotionController:
                 self._detour, self._rejoining = None, False
             if static and ins.avoid:
                 # Chosen from what is seen of the obstacle, and moved out (to the nearest lane
-                # still free) when more of it shows up while going round: a long cart is seen
-                # bit by bit.
+                # still free) when more of it shows up while going round and stands still
+                # (a long cart is seen bit by bit; a noisy reading comes and goes).
                 wanted = lane if self._detour is None else self._detour
-                free = self._detour_lane(floor, obstacle_s, wanted, direction, now)
+                settled = self._detour is not None
+                free = self._detour_lane(floor, obstacle_s, wanted, direction, now, settled)
                 if free is not None:
                     self._detour = free
             if self._detour is not None:
@@ -314,11 +315,21 @@ class MotionController:
         return (rear - self._past) * direction > 0
 
     def _detour_lane(
-        self, floor: Floor, obstacle_s: float, lane: float, direction: float, now: float
+        self,
+        floor: Floor,
+        obstacle_s: float,
+        lane: float,
+        direction: float,
+        now: float,
+        settled: bool = False,
     ) -> float | None:
-        """The lane nearest to ``lane`` whose corridor past the obstacle is free, if any."""
+        """The lane nearest to ``lane`` whose corridor past the obstacle is free, if any;
+        ``settled``: of the cells that have stood still for ``static_confirm_s``."""
         cfg = self.cfg
-        xs, ys, _ = self.costmap.obstacles(now)
+        xs, ys, since = self.costmap.obstacles(now)
+        if settled:
+            keep = since <= now - cfg.static_confirm_s
+            xs, ys = xs[keep], ys[keep]
         sd = np.array([floor.to_hallway(x, y) for x, y in zip(xs, ys, strict=True)]).reshape(-1, 2)
         along = (sd[:, 0] - obstacle_s) * direction
         near = sd[(along > -self.footprint.length_mm) & (along < cfg.lookahead_mm), 1]
