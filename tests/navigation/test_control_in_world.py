@@ -103,18 +103,6 @@ def test_regains_the_lane_without_weaving() -> None:
     assert abs(offsets[-1]) < 25
 
 
-def test_back_to_the_lane_from_beside_the_far_wall_without_swinging_into_it() -> None:
-    """Started 95 mm from the far wall (where going round can end: a detour lane keeps
-    100 mm), the robot heads for its lane. Turning about the axle swings a rear corner
-    towards that wall; plain lane keeping hit it within a second."""
-    d = FLOOR.hallway.width_mm / 2 - CONFIG.geometry.width_mm / 2 - 95.0
-    world = world_at(13000, d)
-    run = drive(world, lane(19000), max_time_s=60)
-    assert not world.collisions
-    assert run.done
-    assert abs(FLOOR.to_hallway(world.pose.x_mm, world.pose.y_mm)[1] - LANE) < 100
-
-
 def test_waits_for_a_box_it_may_not_drive_around() -> None:
     bx, by = FLOOR.from_hallway(17000, -650)
     box = ObstacleSpec(id="box", kind="cardboard_box", floor=2, x_mm=bx, y_mm=by)

@@ -45,10 +45,9 @@ TURN_CHECK_STEPS = 7
 """Headings checked along a turn on the spot before it is made."""
 
 REJOIN_MM = 100.0
-"""Further than this from its lane (back from going round, or started away from it), the
-robot is steered back by the dynamic window, which checks the sweep of the rear corners
-against the walls: lane keeping turns at up to ``max_lane_angle_deg`` without looking, and
-from beside a wall (a detour lane's limit leaves 100 mm) that swings a rear corner into it."""
+"""After going round, the dynamic window steers back to the lane until the robot is this
+close to it; lane keeping turns at up to ``max_lane_angle_deg`` without looking at the walls,
+and from a detour lane beside the far wall that swings the rear corner into it."""
 
 WAIT_ROOM_MM = 200.0
 """Room left beyond the planner's lethal zone where the robot waits in front of an obstacle,
@@ -83,6 +82,8 @@ class MotionController:
         self._detour: float | None = None
         self._past: float | None = None
         """Going round: the furthest along-hallway position of the obstacle seen so far."""
+        self._rejoining = False
+        """Past the obstacle, the dynamic window is steering back to the lane."""
         self._line: float | None = None
         """``drive_to``: the direction of the line being followed, fixed at its start."""
 
@@ -143,6 +144,7 @@ class MotionController:
         if instruction.id != self._instruction_id:
             self._instruction_id = instruction.id
             self._detour = self._past = None
+            self._rejoining = False
             self._line = None
             self._state = MotionState.MOVING
             self._since = now
@@ -259,6 +261,8 @@ class MotionController:
         ahead = self._obstacle_ahead(floor, s, lane, direction, now)
         if ahead is not None:
             obstacle_s, static = ahead
+            if self._rejoining:  # something new in the lane: judged afresh
+                self._detour, self._rejoining = None, False
             if static and ins.avoid:
                 # Chosen from what is seen of the obstacle, and moved out (to the nearest lane
                 # still free) when more of it shows up while going round and stands still
@@ -288,27 +292,15 @@ class MotionController:
                     state = MotionState.MOVING
                 status = self._status(ins.id, state, now, remaining, why)
         elif self._detour is not None and self._passed(s, direction):
-            self._detour = self._past = None  # past it, and the lane ahead is clear
+            # Past it and the lane ahead is clear: the dynamic window steers back to the lane,
+            # checking the rear's swing against the walls, until lane keeping can take over.
+            self._past = None
+            self._rejoining = abs(lane - d) > REJOIN_MM
+            self._detour = lane if self._rejoining else None
         if self._detour is not None:
             # Hold the detour lane until the body is past everything seen of the obstacle.
             return self._avoid(
                 ins, floor, pose, self._detour, direction, target, now, dt, limit, remaining
-            )
-        if ahead is None and abs(lane - d) > REJOIN_MM:
-            # Far from the lane (back from going round, or started away from it): the dynamic
-            # window steers back, checking the rear corners' sweep against the walls.
-            return self._avoid(
-                ins,
-                floor,
-                pose,
-                lane,
-                direction,
-                target,
-                now,
-                dt,
-                limit,
-                remaining,
-                detail="back to the lane",
             )
         heading = lane_heading_deg(travel, (lane - d) * direction, cfg)
         return self._command(
@@ -363,7 +355,6 @@ class MotionController:
         dt: float,
         limit: float,
         remaining: float,
-        detail: str = "going around",
     ) -> Command:
         cap = min(target, self.cfg.approach_speed_mm_s, limit)
         choice = self.dwa.choose(
@@ -399,7 +390,7 @@ class MotionController:
                     return self._command(0.0, rate, dt, status, limit)
             status = self._status(ins.id, MotionState.BLOCKED, now, remaining, "no way past")
             return self._command(0.0, 0.0, dt, status, limit)
-        status = self._status(ins.id, MotionState.AVOIDING, now, remaining, detail)
+        status = self._status(ins.id, MotionState.AVOIDING, now, remaining, "going around")
         self.speed = min(choice.speed_mm_s, limit)
         self.yaw_rate = choice.yaw_rate_dps
         return Command(self.speed, self.yaw_rate, status)
