@@ -17,12 +17,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TypeVar
 
 import numpy as np
 
 from coffeebot.config import MotionConfig
 from coffeebot.floorplan import Floor
 from coffeebot.navigation.costmap import LocalCostmap
+
+Coordinate = TypeVar("Coordinate", float, np.ndarray)
 
 SIM_STEP_S = 0.1
 
@@ -43,6 +46,14 @@ class DwaChoice:
     admissible: int
 
 
+def axle_point(
+    x_mm: Coordinate, y_mm: Coordinate, heading_rad: Coordinate, axle_x_mm: float
+) -> tuple[Coordinate, Coordinate]:
+    """Where the driven axle is for a body-centre pose (a negative ``axle_x_mm``: the other
+    way round); scalars or arrays alike."""
+    return x_mm + axle_x_mm * np.cos(heading_rad), y_mm + axle_x_mm * np.sin(heading_rad)
+
+
 def rollout(
     pose: tuple[float, float, float],
     speeds_mm_s: np.ndarray,
@@ -54,7 +65,7 @@ def rollout(
     differential drive turning about its axle, from ``pose`` (x, y, heading rad) holding
     each (speed, turn rate) pair: the axle follows a circular arc (a line at zero rate)."""
     x0, y0, h0 = pose
-    ax0, ay0 = x0 + axle_x_mm * math.cos(h0), y0 + axle_x_mm * math.sin(h0)
+    ax0, ay0 = axle_point(x0, y0, h0, axle_x_mm)
     v, w = speeds_mm_s[:, None], rates_rad_s[:, None]
     theta = h0 + w * times_s[None, :]
     straight = np.abs(w) < 1e-6
@@ -65,7 +76,8 @@ def rollout(
     ay = np.where(
         straight, ay0 + v * times_s * math.sin(h0), ay0 - radius * (np.cos(theta) - math.cos(h0))
     )
-    return ax - axle_x_mm * np.cos(theta), ay - axle_x_mm * np.sin(theta), theta
+    cx, cy = axle_point(ax, ay, theta, -axle_x_mm)
+    return cx, cy, theta
 
 
 class DynamicWindow:
@@ -116,10 +128,8 @@ class DynamicWindow:
         # Progress and lane are scored at the axle, which only moves along its arc: scored at
         # the centre, a turn on the spot that swings the centre sideways would pass for
         # moving towards the lane.
-        axle = self.axle_x_mm
-        s0 = floor.to_hallway(x0 + axle * math.cos(h0), y0 + axle * math.sin(h0))[0]
-        end_x = xs[:, -1] + axle * np.cos(theta[:, -1])
-        end_y = ys[:, -1] + axle * np.sin(theta[:, -1])
+        s0 = floor.to_hallway(*axle_point(x0, y0, h0, self.axle_x_mm))[0]
+        end_x, end_y = axle_point(xs[:, -1], ys[:, -1], theta[:, -1], self.axle_x_mm)
         ends = [floor.to_hallway(x, y) for x, y in zip(end_x, end_y, strict=True)]
         s_end = np.array([e[0] for e in ends])
         d_end = np.array([e[1] for e in ends])
