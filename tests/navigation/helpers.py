@@ -38,6 +38,19 @@ def to_scan(world: World) -> RangeScan:
     return RangeScan(cycle_start_s=world.t_s, cycle_time_s=DT, readings=readings)
 
 
+def estimate_at(floor: int, x: float, y: float, heading: float = 0.0) -> PoseEstimate:
+    """A pose estimate at rest, as the state module gives it with good fixes (10 mm, 1 deg)."""
+    return PoseEstimate(
+        x_mm=x,
+        y_mm=y,
+        heading_deg=heading,
+        floor=floor,
+        sigma_x_mm=10,
+        sigma_y_mm=10,
+        sigma_heading_deg=1,
+    )
+
+
 def true_pose(world: World) -> PoseEstimate:
     body = world.body.state
     return PoseEstimate(

@@ -7,12 +7,11 @@ import math
 
 import numpy as np
 import pytest
-from helpers import CONFIG, PLAN
+from helpers import CONFIG, PLAN, estimate_at
 
 from coffeebot.messages import (
     MotionState,
     MoveInstruction,
-    PoseEstimate,
     RangeReading,
     RangeScan,
     ReadingStatus,
@@ -172,16 +171,7 @@ def test_seen_late_close_to_a_wide_obstacle_it_turns_out_instead_of_giving_up() 
     heading = FLOOR.hallway.heading_deg
     for t in np.arange(0.0, 3.0, 0.05):  # seen for long enough to count as standing still
         module.costmap.update(scan, FLOOR, x, y, heading, float(t))
-    pose = PoseEstimate(
-        x_mm=x,
-        y_mm=y,
-        heading_deg=heading,
-        floor=2,
-        sigma_x_mm=10,
-        sigma_y_mm=10,
-        sigma_heading_deg=1,
-        speed_mm_s=0.0,
-    )
+    pose = estimate_at(2, x, y, heading)
     instruction = MoveInstruction(
         id=1, action="follow_lane", floor=2, target_s_mm=30000.0, lane_mm=lane_d, avoid=True
     )

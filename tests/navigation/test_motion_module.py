@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import pytest
-from helpers import CONFIG, PLAN
+from helpers import CONFIG, PLAN, estimate_at
 
 from coffeebot.board import Board
 from coffeebot.daemon import Daemon
@@ -21,7 +21,6 @@ from coffeebot.messages import (
     Health,
     HealthStatus,
     MoveInstruction,
-    PoseEstimate,
     SafetyState,
 )
 from coffeebot.modules.motion import MotionModule, safety_gate
@@ -29,9 +28,7 @@ from manual_clock import ManualClock
 
 FLOOR = PLAN.floor(2)
 X, Y = FLOOR.from_hallway(10000, -295)
-POSE = PoseEstimate(
-    x_mm=X, y_mm=Y, heading_deg=0.0, floor=2, sigma_x_mm=10, sigma_y_mm=10, sigma_heading_deg=1
-)
+POSE = estimate_at(2, X, Y)
 GO = CollisionStatus(state=SafetyState.GO, scan_seq=1, speed_limit_mm_s=1000.0)
 
 

@@ -6,7 +6,7 @@ import asyncio
 import contextlib
 
 import pytest
-from helpers import CONFIG, PLAN
+from helpers import CONFIG, PLAN, estimate_at
 
 from coffeebot.board import Board
 from coffeebot.daemon import Daemon
@@ -27,7 +27,6 @@ from coffeebot.messages import (
     OperatorEvent,
     OrderDispatch,
     OrderStatus,
-    PoseEstimate,
 )
 from coffeebot.modules.navigation import NavigationModule
 from coffeebot.navigation.lifecycle import READY_FOR_CUP
@@ -38,17 +37,7 @@ PLANNER = RoutePlanner(PLAN, CONFIG.motion, CONFIG.navigation, CONFIG.geometry.w
 
 
 def pose_at(floor: int, x: float, y: float, heading: float = 0.0) -> CurrentState:
-    return CurrentState(
-        pose=PoseEstimate(
-            x_mm=x,
-            y_mm=y,
-            heading_deg=heading,
-            floor=floor,
-            sigma_x_mm=10,
-            sigma_y_mm=10,
-            sigma_heading_deg=1,
-        )
-    )
+    return CurrentState(pose=estimate_at(floor, x, y, heading))
 
 
 class Stand:
