@@ -38,7 +38,6 @@ from coffeebot.messages import (
     AngleEstimate,
     Odometry,
     PoseEstimate,
-    RangeReading,
     RangeScan,
     SafetyState,
 )
@@ -49,7 +48,7 @@ from coffeebot.perception.geometry import TravelFrame, side_pairs, valid_distanc
 from coffeebot.perception.state import StateEstimator
 from coffeebot.sim.world import ObstacleSpec, Pose, RobotSpec, World
 from coffeebot.sim.world.obstacles import obstacle_surfaces
-from coffeebot.sim.world.tof import SensorArray, ToFModel, ToFReading
+from coffeebot.sim.world.tof import ToFReading, as_range_reading
 from coffeebot.sim.world.trace import hallway_pass, hallway_pose
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -63,10 +62,7 @@ def to_scan(readings: list[ToFReading] | tuple[ToFReading, ...], t: float) -> Ra
     return RangeScan(
         cycle_start_s=t,
         cycle_time_s=1.0 / SCAN_HZ,
-        readings=[
-            RangeReading(sensor=i, status=r.status, distance_mm=r.distance_mm)
-            for i, r in enumerate(readings)
-        ],
+        readings=[as_range_reading(i, r) for i, r in enumerate(readings)],
     )
 
 
@@ -347,29 +343,6 @@ UNDETECTABLE = {
 }
 
 
-def sensor_model_check(spec: RobotSpec) -> dict:
-    """How the simulated cone compares with a real VL53L1X for a 30 mm chair leg."""
-    model = ToFModel()
-    array = SensorArray(spec.sensors[:1], model)
-    fov = spec.sensors[0].fov_deg
-    pitch = fov / (model.rays_per_axis - 1)
-    leg = 30.0
-    at_mm = 1000.0
-    footprint = 2 * at_mm * math.tan(math.radians(fov / 2))
-    return {
-        "rays_per_sensor": array.rays_per_sensor,
-        "ray_pitch_deg": round(pitch, 2),
-        "leg_always_hit_within_mm": round(leg / (2 * math.tan(math.radians(pitch / 2))), 0),
-        "leg_share_of_cone_at_1m": round(leg * footprint / (math.pi * (footprint / 2) ** 2), 3),
-        "note": "the real sensor integrates its whole field of view (16x16 SPADs) and "
-        "reports a signal-weighted average of what it sees; the simulator casts the rays "
-        "above, reports the nearest hit, and a hit on fewer than 20% of the rays only half "
-        "the time: a leg between rays is invisible to it, while to a real sensor it is a "
-        "few per cent of the signal, mixed with the wall behind. Not changed: either way "
-        "a thin leg beyond ~0.3 m is not a reliable return",
-    }
-
-
 def bench_collision(
     plan: FloorPlan, config: RobotConfig, spec: RobotSpec, speeds: list[int]
 ) -> dict:
@@ -395,7 +368,6 @@ def bench_collision(
         "min_clearance_mm": min(clearances) if clearances else None,
         "by_obstacle": runs,
         "undetectable": [{"obstacle": k, "why": why} for k, why in undetectable],
-        "sensor_model": sensor_model_check(spec),
         "chain": "scans -> CollisionMonitor -> braking model (stop/slow limit to the simulated "
         "motors, their own 500 mm/s^2 ramp) -> simulated robot; motion module and motor "
         "controller protocol not in the loop",
@@ -527,12 +499,6 @@ def table(result: dict[str, Any]) -> str:
         f"| **min {c['min_clearance_mm']}** |",
     ]
     lines += [f"- undetectable: {u['obstacle']}: {u['why']}" for u in c["undetectable"]]
-    m = c["sensor_model"]
-    lines += [
-        f"- sensor model: {m['rays_per_sensor']} rays per cone, {m['ray_pitch_deg']} deg apart: "
-        f"a 30 mm leg is always hit only within {m['leg_always_hit_within_mm']:.0f} mm; at 1 m "
-        f"it is {m['leg_share_of_cone_at_1m']:.1%} of the cone. {m['note']}",
-    ]
     lines += [
         "",
         "| localization | value | target |",

@@ -13,6 +13,8 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from coffeebot.hardware.vl53l1x import field_of_view_deg
+
 
 class ConfigError(ValueError):
     """A configuration or floor-plan file that cannot be used, with the reason."""
@@ -39,7 +41,15 @@ class TofSensorConfig(Section):
     y_mm: float
     yaw_deg: float = Field(ge=-180, le=180)
     height_mm: float = Field(250.0, gt=0)
-    fov_deg: float = Field(27.0, ge=15, le=27)
+    roi_spads: int = Field(
+        16, ge=4, le=16, description="square region of interest: 16 = the full 27 degree cone, "
+        "4 = the narrowest, 15 degrees (and a tenth of the light)"
+    )
+
+    @property
+    def fov_deg(self) -> float:
+        """The nominal field of view of the configured region of interest."""
+        return field_of_view_deg(self.roi_spads)
 
 
 class TofConfig(Section):
@@ -49,7 +59,12 @@ class TofConfig(Section):
         None, gt=0, le=100, description="None: as fast as the timing budget allows"
     )
     max_range_mm: int = Field(4000, gt=0)
-    noisy_beyond_mm: int = Field(1000, gt=0)
+    min_signal_mcps: float = Field(
+        1.0, ge=0, lt=512, description="the chip's minimum signal rate for a valid ranging"
+    )
+    sigma_limit_mm: float = Field(
+        90.0, gt=0, lt=16384, description="the chip's sigma limit for a valid ranging"
+    )
     effective_half_fov_deg: float = Field(
         13.5,
         ge=0,

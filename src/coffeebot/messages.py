@@ -66,10 +66,16 @@ class ReadingStatus(StrEnum):
 
 
 class RangeReading(Message):
+    """One VL53L1X ranging. ``distance_mm`` is set only for a valid status (under a bad one
+    the chip's distance register holds a number that is often garbage); signal, ambient and
+    sigma say what the reading is worth whatever its status."""
+
     sensor: int = Field(ge=0, le=7)
     status: ReadingStatus
     distance_mm: int | None = None
     signal_rate_mcps: float | None = None
+    ambient_rate_mcps: float | None = None
+    sigma_mm: float | None = None
     healthy: bool = True
 
 

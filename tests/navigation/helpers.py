@@ -15,7 +15,6 @@ from coffeebot.messages import (
     MotionState,
     MoveInstruction,
     PoseEstimate,
-    RangeReading,
     RangeScan,
     SafetyState,
 )
@@ -23,6 +22,7 @@ from coffeebot.modules.motion import MotionModule
 from coffeebot.navigation.control import wheel_speeds
 from coffeebot.perception.collision import CollisionMonitor
 from coffeebot.sim.world import World
+from coffeebot.sim.world.tof import as_range_reading
 
 ROOT = Path(__file__).resolve().parents[2]
 CONFIG: RobotConfig = load_robot_config(ROOT / "boards" / "coffeebot-v1.toml")
@@ -31,10 +31,7 @@ DT = 0.05
 
 
 def to_scan(world: World) -> RangeScan:
-    readings = [
-        RangeReading(sensor=k, status=r.status, distance_mm=r.distance_mm)
-        for k, r in enumerate(world.scan())
-    ]
+    readings = [as_range_reading(k, r) for k, r in enumerate(world.scan())]
     return RangeScan(cycle_start_s=world.t_s, cycle_time_s=DT, readings=readings)
 
 

@@ -168,11 +168,11 @@ def service_check(
 def simulated_robot(config: RobotConfig, fault: str | None) -> Iterator[tuple[RobotConfig, I2CBus]]:
     """The simulated buses wired as ``config`` says, with one named fault injected."""
     from coffeebot.sim.dwm1001 import SimDwm1001
-    from coffeebot.sim.i2c import make_tof_hardware
+    from coffeebot.sim.i2c import make_tof_hardware, targets_at
     from coffeebot.sim.motor_controller import SimMotorController
 
     hw = make_tof_hardware(
-        lambda ch: 800.0 + 10 * ch,
+        targets_at(lambda ch: 800.0 + 10 * ch),
         [s.channel for s in config.tof.sensors],
         mux_address=config.i2c.mux_address,
     )

@@ -34,8 +34,7 @@ import numpy as np
 from coffeebot.config import MotionConfig, TofSensorConfig
 from coffeebot.floorplan import Floor, segment_distances
 from coffeebot.messages import RangeScan, ReadingStatus
-from coffeebot.perception.collision import NOTHING_IN_RANGE
-from coffeebot.perception.geometry import sensor_origin
+from coffeebot.perception.geometry import NOTHING_IN_RANGE, sensor_origin
 
 MAX_MARK_MM = 1500.0
 """Readings beyond this are too noisy to mark (seed 000: noise above ~1000 mm in mid mode)."""

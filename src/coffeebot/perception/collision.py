@@ -36,10 +36,7 @@ from dataclasses import dataclass
 
 from coffeebot.config import CollisionConfig, TofSensorConfig
 from coffeebot.messages import CollisionStatus, RangeReading, RangeScan, ReadingStatus, SafetyState
-from coffeebot.perception.geometry import valid_distance
-
-NOTHING_IN_RANGE = frozenset({ReadingStatus.NO_TARGET, ReadingStatus.OUT_OF_BOUNDS})
-"""Statuses meaning "no target within range": the face is clear, not blind."""
+from coffeebot.perception.geometry import NOTHING_IN_RANGE, valid_distance
 
 FAILED = frozenset({ReadingStatus.HARDWARE_FAIL, ReadingStatus.BUS_ERROR})
 """Statuses meaning the sensor itself is broken: stop at once, do not wait for staleness."""

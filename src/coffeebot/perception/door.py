@@ -34,7 +34,7 @@ import numpy as np
 from coffeebot.config import DoorConfig, TofSensorConfig
 from coffeebot.floorplan import Door, Floor, Opening, Side
 from coffeebot.messages import DoorEvent, PoseEstimate, RangeReading, RangeScan, ReadingStatus
-from coffeebot.perception.geometry import TravelFrame, sensor_origin
+from coffeebot.perception.geometry import NOTHING_IN_RANGE, TravelFrame, sensor_origin
 
 MIN_VISIBLE_MM = 200.0
 """The least of a door a side sensor is assumed to see, however far the wall."""
@@ -169,7 +169,7 @@ class DoorDetector:
             return None
         if reading.status is ReadingStatus.VALID and reading.distance_mm is not None:
             return float(min(reading.distance_mm, self.cfg.max_side_distance_mm))
-        if reading.status in (ReadingStatus.NO_TARGET, ReadingStatus.OUT_OF_BOUNDS):
+        if reading.status in NOTHING_IN_RANGE:
             return self.cfg.max_side_distance_mm
         return None
 

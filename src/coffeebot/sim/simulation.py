@@ -25,13 +25,15 @@ from dataclasses import dataclass, field
 from coffeebot.clock import Clock, ScaledClock
 from coffeebot.config import RobotConfig
 from coffeebot.floorplan import FloorPlan
+from coffeebot.hardware.vl53l1x import SpadRoi
 from coffeebot.messages import ElevatorRequest, ElevatorState, UwbFix
 from coffeebot.modules.base import Module, ModuleContext
 from coffeebot.sim.dwm1001 import SimDwm1001
 from coffeebot.sim.faults import Fault, FaultRecord
 from coffeebot.sim.i2c import make_tof_hardware
 from coffeebot.sim.motor_controller import DriveSample, SimMotorController
-from coffeebot.sim.world import ObstacleSpec, Pose, ToFReading, World
+from coffeebot.sim.world import ObstacleSpec, Pose, World
+from coffeebot.sim.world.tof import Returns
 
 DEVICE_TICK_S = 0.005
 """Simulated seconds between two device thread ticks (motor telemetry is every 20 ms)."""
@@ -106,10 +108,12 @@ class Simulation:
         self._index = {s.channel: i for i, s in enumerate(by_id)}
         self.sensor_channel = {s.id: s.channel for s in by_id}
         self.tof = make_tof_hardware(
-            self._tof_reading,
+            self._tof_returns,
             self._index,
             mux_address=config.i2c.mux_address,
             clock=clock.now,
+            noise=world.noise,
+            seed=world.seed,
         )
         tick_s = DEVICE_TICK_S / speed
         self.uwb = SimDwm1001(fix_fn=self._uwb_fix, clock=clock.now, tick_s=tick_s)
@@ -171,9 +175,9 @@ class Simulation:
             finally:
                 self.cpu_s += time.thread_time() - start
 
-    def _tof_reading(self, channel: int) -> ToFReading:
+    def _tof_returns(self, channel: int, roi: SpadRoi) -> Returns:
         with self.world_time() as world:
-            return world.tof_reading(self._index[channel])
+            return world.tof_returns(self._index[channel], roi)
 
     def _uwb_fix(self) -> UwbFix | None:
         with self.world_time() as world:

@@ -17,6 +17,7 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from coffeebot.sim.world import materials
 from coffeebot.sim.world.geometry import Surfaces
 
 ObstacleKind = Literal[
@@ -35,6 +36,7 @@ class Box:
     width: float
     z_bottom: float
     z_top: float
+    reflectance: float = materials.DEFAULT
 
 
 @dataclass(frozen=True)
@@ -47,6 +49,7 @@ class Pole:
     radius: float
     z_bottom: float
     z_top: float
+    reflectance: float = materials.DEFAULT
 
 
 def _corners(half_x: float, half_y: float) -> list[tuple[float, float]]:
@@ -54,32 +57,34 @@ def _corners(half_x: float, half_y: float) -> list[tuple[float, float]]:
 
 
 SHAPES: dict[str, tuple[Box | Pole, ...]] = {
-    # Two shelves joined by thick plastic bars at the corners; 900 x 500 mm.
+    # Two grey plastic shelves joined by black plastic bars at the corners; 900 x 500 mm.
     "mail_cart": (
-        Box("lower shelf", 0, 0, 900, 500, 100, 230),
-        Box("upper shelf", 0, 0, 900, 500, 750, 900),
-        *(Pole("corner bar", x, y, 15, 100, 900) for x, y in _corners(435, 235)),
+        Box("lower shelf", 0, 0, 900, 500, 100, 230, materials.GREY),
+        Box("upper shelf", 0, 0, 900, 500, 750, 900, materials.GREY),
+        *(Pole("corner bar", x, y, 15, 100, 900, materials.BLACK) for x, y in _corners(435, 235)),
     ),
-    # One large pole from the wheeled base to the seat, fabric under the seat, a backrest.
+    # One chromed pole from the wheeled base to the seat, dark fabric under and on the seat.
     "swivel_chair": (
-        Pole("pole", 0, 0, 30, 100, 400),
-        Box("seat fabric", 0, 0, 440, 440, 400, 430),
-        Box("seat", 0, 0, 480, 480, 430, 500),
-        Box("backrest", -215, 0, 50, 440, 550, 1000),
+        Pole("pole", 0, 0, 30, 100, 400, materials.STEEL),
+        Box("seat fabric", 0, 0, 440, 440, 400, 430, 0.1),
+        Box("seat", 0, 0, 480, 480, 430, 500, 0.1),
+        Box("backrest", -215, 0, 50, 440, 550, 1000, 0.1),
     ),
-    # Solid armrests and base: a box from the side.
-    "sofa": (Box("body", 0, 0, 2000, 900, 0, 850),),
+    # Solid armrests and base: a box from the side, upholstered.
+    "sofa": (Box("body", 0, 0, 2000, 900, 0, 850, 0.3),),
     "wooden_chair": (
-        *(Pole("leg", x, y, 15, 0, 450) for x, y in _corners(190, 190)),
-        Box("seat", 0, 0, 420, 420, 430, 470),
-        Box("backrest", -200, 0, 20, 420, 470, 900),
+        *(Pole("leg", x, y, 15, 0, 450, 0.4) for x, y in _corners(190, 190)),
+        Box("seat", 0, 0, 420, 420, 430, 470, 0.4),
+        Box("backrest", -200, 0, 20, 420, 470, 900, 0.4),
     ),
-    "cardboard_box": (Box("box", 0, 0, 500, 400, 0, 400),),
-    # What a 250 mm sensor sees of a person is two legs; the torso matters for collisions.
+    # Brown kraft cardboard.
+    "cardboard_box": (Box("box", 0, 0, 500, 400, 0, 400, 0.6),),
+    # What a 250 mm sensor sees of a person is two legs in trousers (cotton or denim: their
+    # dyes absorb visible light, not 940 nm); the torso matters for collisions.
     "person": (
-        Pole("leg", 0, 100, 60, 0, 850),
-        Pole("leg", 0, -100, 60, 0, 850),
-        Pole("torso", 0, 0, 180, 850, 1750),
+        Pole("leg", 0, 100, 60, 0, 850, 0.45),
+        Pole("leg", 0, -100, 60, 0, 850, 0.45),
+        Pole("torso", 0, 0, 180, 850, 1750, 0.45),
     ),
 }
 
@@ -143,13 +148,16 @@ def obstacle_surfaces(spec: ObstacleSpec, t_s: float = 0.0) -> Surfaces:
 
     segments: list[tuple[float, ...]] = []
     segment_ids: list[str] = []
+    segment_reflectance: list[float] = []
     cylinders: list[tuple[float, ...]] = []
     cylinder_ids: list[str] = []
+    cylinder_reflectance: list[float] = []
     for part in SHAPES[spec.kind]:
         element = f"{spec.id} {part.part}"
         if isinstance(part, Pole):
             cylinders.append((*place(part.cx, part.cy), part.radius, part.z_bottom, part.z_top))
             cylinder_ids.append(element)
+            cylinder_reflectance.append(part.reflectance)
             continue
         hx, hy = part.length / 2, part.width / 2
         ring = [place(part.cx + px, part.cy + py) for px, py in _corners(hx, hy)]
@@ -157,9 +165,12 @@ def obstacle_surfaces(spec: ObstacleSpec, t_s: float = 0.0) -> Surfaces:
         for a, b in itertools.pairwise([*ring, ring[0]]):
             segments.append((*a, *b, part.z_bottom, part.z_top))
             segment_ids.append(element)
+            segment_reflectance.append(part.reflectance)
     return Surfaces(
         np.array(segments, dtype=float).reshape(-1, 6),
         tuple(segment_ids),
         np.array(cylinders, dtype=float).reshape(-1, 5),
         tuple(cylinder_ids),
+        np.array(segment_reflectance, dtype=float),
+        np.array(cylinder_reflectance, dtype=float),
     )

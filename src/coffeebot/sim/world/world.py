@@ -21,9 +21,22 @@ from coffeebot.floorplan import Floor, FloorPlan, segment_distances
 from coffeebot.messages import AnchorRange, UwbFix
 from coffeebot.sim.world.elevator import SimElevator
 from coffeebot.sim.world.geometry import Surfaces, footprint_contacts
+from coffeebot.sim.world.materials import element_reflectance
 from coffeebot.sim.world.obstacles import ObstacleSpec, obstacle_surfaces
 from coffeebot.sim.world.robot import Pose, RobotBody, RobotSpec
-from coffeebot.sim.world.tof import SensorArray, ToFModel, ToFReading
+from coffeebot.sim.world.tof import (
+    DEFAULT_SETUP,
+    FULL_ROI,
+    ConeOptics,
+    Layers,
+    RangingNoise,
+    RangingSetup,
+    Returns,
+    SensorArray,
+    SpadRoi,
+    ToFReading,
+    range_once,
+)
 
 PHYSICS_DT_S = 0.005
 """Longest physics sub-step: 5 mm at 1 m/s, finer than any wall or leg."""
@@ -65,25 +78,28 @@ class World:
         pose: Pose,
         obstacles: Sequence[ObstacleSpec] = (),
         seed: int = 0,
-        tof: ToFModel | None = None,
+        optics: ConeOptics | None = None,
+        noise: RangingNoise | None = None,
         uwb: UwbModel | None = None,
         elevator: SimElevator | None = None,
     ) -> None:
         self.plan = plan
         self.elevator = elevator
         self.robot = robot
+        self.seed = seed
         self.obstacles = tuple(obstacles)
         for obstacle in self.obstacles:
             plan.floor(obstacle.floor)  # raises KeyError naming the missing floor
-        self.tof_model = tof or ToFModel()
+        self.optics = optics or ConeOptics()
+        self.noise = RangingNoise() if noise is None else noise
         self.uwb_model = uwb or UwbModel()
-        self.sensors = SensorArray(robot.sensors, self.tof_model)
+        self.sensors = SensorArray(robot.sensors, self.optics)
         self._tof_rng, self._gyro_rng, self._uwb_rng, self._slip_rng = (
             np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(4)
         )
         self._static: dict[int, Surfaces] = {}
         reach = max((math.hypot(m.x_mm, m.y_mm) for m in robot.sensors), default=0.0)
-        self._cast_radius = self.tof_model.max_range_mm + reach
+        self._cast_radius = self.optics.max_path_mm + reach
         self._contact_radius = math.hypot(robot.length_mm, robot.width_mm) / 2 + 1.0
         self.body = RobotBody(robot, pose)
         self.t_s = 0.0
@@ -91,7 +107,8 @@ class World:
         """The motor controller's watchdog deadline for the wheel set-point (world time)."""
         self.collisions: list[Collision] = []
         self._touching: set[str] = set()
-        self._ranges: np.ndarray | None = None
+        self._layers: Layers | None = None
+        self._returns: dict[tuple[int, SpadRoi], Returns] = {}
         self.floor_level = floor
         self.place_robot(pose, floor)  # starting inside something counts as a collision
 
@@ -122,11 +139,13 @@ class World:
             # With a simulated elevator its car doors stand in for the plan's door leaf.
             doors = None if self.elevator is None else self.elevator.door_element(level)
             keep = [i for i, s in enumerate(floor.segments) if s.element != doors]
+            elements = tuple(floor.segments[i].element for i in keep)
             surfaces = Surfaces(
                 floor.segment_array[keep],
-                tuple(floor.segments[i].element for i in keep),
+                elements,
                 np.zeros((0, 5)),
                 (),
+                np.array([element_reflectance(e) for e in elements]),
             )
             for obstacle in self.obstacles:
                 if obstacle.floor == level and not obstacle.moving:
@@ -162,7 +181,7 @@ class World:
                 if self._touching:
                     clear_of = self._contacts(proposed.x, proposed.y, proposed.theta, _RELEASE_MM)
                     self._touching &= clear_of.keys()
-        self._ranges = None
+        self._forget_returns()
 
     def place_robot(self, pose: Pose, floor: int | None = None) -> None:
         """Put the robot at rest somewhere, on another floor after an elevator ride."""
@@ -170,7 +189,7 @@ class World:
             self.floor_level = self.plan.floor(floor).level
         self.body.place(pose)
         self._touching.clear()
-        self._ranges = None
+        self._forget_returns()
         s = self.body.state
         self._record_contacts(self._contacts(s.x, s.y, s.theta))
 
@@ -263,24 +282,32 @@ class World:
 
     # --- time-of-flight sensors ------------------------------------------------------------
 
-    def tof_ranges(self) -> np.ndarray:
-        """Noiseless per-ray ranges (sensors, rays) for the current state, cached per step."""
-        if self._ranges is None:
-            s = self.body.state
-            surfaces = self.surfaces()
-            seg, cyl = surfaces.near(s.x, s.y, self._cast_radius)
-            self._ranges = self.sensors.ranges(
-                s.x, s.y, s.theta, surfaces.segments[seg], surfaces.cylinders[cyl]
-            )
-        return self._ranges
+    def _forget_returns(self) -> None:
+        self._layers = None
+        self._returns.clear()
 
-    def tof_reading(self, sensor: int) -> ToFReading:
-        """One ranging of sensor ``sensor`` (index into the robot's mounts), with noise."""
-        return self.sensors.measure(self.tof_ranges()[sensor : sensor + 1], self._tof_rng)[0]
+    def tof_returns(self, sensor: int, roi: SpadRoi = FULL_ROI) -> Returns:
+        """What sensor ``sensor`` (index into the robot's mounts) collects now through
+        ``roi``, noiseless; every sensor's optics are cast once until the world moves."""
+        key = (sensor, roi)
+        if key not in self._returns:
+            if self._layers is None:
+                s = self.body.state
+                surfaces = self.surfaces()
+                near = surfaces.take(*surfaces.near(s.x, s.y, self._cast_radius))
+                self._layers = self.sensors.layers(s.x, s.y, s.theta, near)
+            self._returns[key] = self.sensors.returns(self._layers, sensor, roi)
+        return self._returns[key]
 
-    def scan(self) -> list[ToFReading]:
-        """One ranging of every sensor."""
-        return self.sensors.measure(self.tof_ranges(), self._tof_rng)
+    def tof_reading(
+        self, sensor: int, setup: RangingSetup = DEFAULT_SETUP, roi: SpadRoi = FULL_ROI
+    ) -> ToFReading:
+        """One ranging of sensor ``sensor`` with the chip set up as ``setup``, with noise."""
+        return range_once(self.tof_returns(sensor, roi), setup, self.noise, self._tof_rng)
+
+    def scan(self, setup: RangingSetup = DEFAULT_SETUP) -> list[ToFReading]:
+        """One ranging of every sensor through its full ROI."""
+        return [self.tof_reading(k, setup) for k in range(len(self.sensors.mounts))]
 
     # --- UWB -------------------------------------------------------------------------------
 
