@@ -197,7 +197,7 @@ def bench_door(plan: FloorPlan, config: RobotConfig, spec: RobotSpec, speeds: li
             rows = hallway_pass(world, speed_mm_s=speed, to_s_mm=end, rate_hz=SCAN_HZ)
             distance_m += (rows[-1].s_mm - rows[0].s_mm) / 1000.0
             detector = DoorDetector(
-                config.tof.sensors, config.door, config.tof.effective_half_fov_deg
+                config.tof.sensors, config.door, config.tof.cone_half_deg
             )
             events = []
             for k, row in enumerate(rows[1:], start=1):
@@ -387,7 +387,7 @@ def bench_localization(plan: FloorPlan, config: RobotConfig, spec: RobotSpec, sp
         )
         state = StateEstimator(plan, config.motor, config.state)
         angle = AngleEstimator(config.tof.sensors, config.angle, config.tof.effective_half_fov_deg)
-        doors = DoorDetector(config.tof.sensors, config.door, config.tof.effective_half_fov_deg)
+        doors = DoorDetector(config.tof.sensors, config.door, config.tof.cone_half_deg)
         half_base = spec.wheel_base_mm / 2
         end = floor.hallway.length_mm - 1000
         dt = 0.02  # motor-controller telemetry at 50 Hz, scans and UWB at 10 Hz

@@ -66,13 +66,19 @@ class TofConfig(Section):
         90.0, gt=0, lt=16384, description="the chip's sigma limit for a valid ranging"
     )
     effective_half_fov_deg: float = Field(
-        13.5,
+        0.0,
         ge=0,
         le=20,
-        description="ranging model for wall geometry: a reading is the nearest return within "
-        "this many degrees of the optical axis (half the 27 degree cone); 0 = along the axis",
+        description="ranging model for wall geometry (angle correction): a reading is the "
+        "nearest return within this many degrees of the optical axis; 0 = along the axis, "
+        "which is what the VL53L1X's signal-weighted mean gives on a flat wall",
     )
     sensors: list[TofSensorConfig]
+
+    @property
+    def cone_half_deg(self) -> float:
+        """Half the widest sensor's nominal field of view: where a return may come from."""
+        return max((s.fov_deg for s in self.sensors), default=0.0) / 2.0
 
     @model_validator(mode="after")
     def _unique(self) -> TofConfig:
@@ -125,6 +131,12 @@ class CollisionConfig(Section):
         50.0, gt=0, description="slowest crawl the slowdown zone asks for before stopping"
     )
     hysteresis_mm: float = Field(30.0, ge=0, description="extra clearance needed to relax")
+    corridor_margin_mm: float = Field(
+        100.0, ge=0, description="a front return this far beside the body's width is in the way"
+    )
+    creep_ahead_mm_s: float = Field(
+        100.0, gt=0, description="the straight creep out of a side hold"
+    )
     stale_cycles: int = Field(5, ge=1, description="scans without a valid reading -> stop")
     unknown_speed_mm_s: float | None = Field(
         None, gt=0, description="speed assumed without fresh odometry; None: motor max speed"
@@ -159,6 +171,31 @@ class CollisionConfig(Section):
         1200.0,
         gt=0,
         description="narrow returns further than this are not judged (glances off side walls)",
+    )
+
+
+class TrackingConfig(Section):
+    """Returns followed over scans (perception/tracking.py): people walking into the way."""
+
+    max_range_mm: float = Field(2500.0, gt=0, description="readings further are not tracked")
+    range_sigma_mm: float = Field(30.0, gt=0, description="a reading's error along its axis")
+    accel_sigma_mm_s2: float = Field(
+        1500.0, gt=0, description="how hard a tracked person may change pace"
+    )
+    initial_speed_sigma_mm_s: float = Field(
+        1600.0, gt=0, description="a new track may move as fast as a brisk walk (ISO 13855)"
+    )
+    gate_sigmas: float = Field(3.0, gt=0, description="association gate, in standard deviations")
+    confirm_hits: int = Field(3, ge=2, description="points before a track's velocity counts")
+    forget_s: float = Field(0.4, gt=0, description="a track not seen this long is dropped")
+    mover_speed_mm_s: float = Field(
+        250.0, gt=0, description="slower over the ground is standing (noise, a sliding glance)"
+    )
+    corridor_margin_mm: float = Field(
+        100.0, ge=0, description="a mover this close to the body's corridor is in it"
+    )
+    horizon_s: float = Field(
+        0.8, gt=0, description="prediction beyond the time to stop: how far ahead to look"
     )
 
 
@@ -408,6 +445,7 @@ class RobotConfig(Section):
     motor: MotorConfig
     geometry: GeometryConfig = GeometryConfig()
     collision: CollisionConfig = CollisionConfig()
+    tracking: TrackingConfig = TrackingConfig()
     angle: AngleConfig = AngleConfig()
     door: DoorConfig = DoorConfig()
     state: StateConfig = StateConfig()

@@ -159,6 +159,10 @@ class CollisionStatus(Message):
     """A "stop" whose only cause is an obstacle on the front face, with no sensor fault,
     clear sides, and a front clearance no smaller than when the stop began: turning on the
     spot (zero forward speed) away from it is allowed. Everything else stays stopped."""
+    may_creep_ahead: bool = False
+    """A "stop" whose only cause is something within a side radius, with nothing in the way
+    ahead and a side gap no smaller than when the hold began: creeping straight ahead
+    (no turning, which would swing a corner into it) is allowed, the way out of a side hold."""
 
 
 # --- orders and delivery ------------------------------------------------------------------

@@ -94,7 +94,19 @@ def drive(
         )
         verdict = monitor.update(scan, pose.speed_mm_s, seq)
         limit = 0.0 if verdict.state is SafetyState.STOP else verdict.speed_limit_mm_s
-        if limit <= 0:
+        if limit <= 0 and verdict.may_rotate:
+            # As the motion module: held by something ahead, it may still turn on the spot.
+            command = module.controller.step(instruction, pose, world.t_s, DT, 0.0)
+            run.states.append(command.status.state)
+            turn = wheel_speeds(0.0, command.yaw_rate_dps, CONFIG.motor.wheel_base_mm)
+            world.command_wheels(*turn)
+        elif limit <= 0 and verdict.may_creep_ahead:
+            # As the motion module: held beside something, it may creep straight ahead.
+            creep = CONFIG.collision.creep_ahead_mm_s
+            command = module.controller.step(instruction, pose, world.t_s, DT, creep)
+            run.states.append(command.status.state)
+            world.command_wheels(command.speed_mm_s, command.speed_mm_s)
+        elif limit <= 0:
             module.controller.halt()
             world.command_wheels(0.0, 0.0)
         else:

@@ -35,6 +35,9 @@ class CollisionModule(Module):
             max_speed_mm_s=cfg.collision.unknown_speed_mm_s or cfg.motor.max_speed_mm_s,
             max_range_mm=cfg.tof.max_range_mm,
             body_width_mm=cfg.geometry.width_mm,
+            body_length_mm=cfg.geometry.length_mm,
+            tracking=cfg.tracking,
+            axle_x_mm=cfg.motor.axle_x_mm,
         )
 
     def _motion(self, ctx: ModuleContext) -> tuple[float | None, float]:

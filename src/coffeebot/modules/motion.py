@@ -58,6 +58,8 @@ class Gate:
     reason: str
     may_rotate: bool = False
     """A front stop that still allows turning on the spot (the collision verdict's call)."""
+    may_creep_ahead: bool = False
+    """A side hold that still allows creeping straight ahead (the collision verdict's call)."""
 
     @property
     def stop(self) -> bool:
@@ -82,7 +84,12 @@ def safety_gate(
         return Gate(0.0, f"collision verdict {collision_age_s:.2f} s old")
     verdict = collision.msg
     if verdict.state is SafetyState.STOP:
-        return Gate(0.0, f"collision stop: {verdict.reason}", may_rotate=verdict.may_rotate)
+        return Gate(
+            0.0,
+            f"collision stop: {verdict.reason}",
+            may_rotate=verdict.may_rotate,
+            may_creep_ahead=verdict.may_creep_ahead,
+        )
     if verdict.state is SafetyState.SLOW:
         return Gate(verdict.speed_limit_mm_s, f"slow: {verdict.reason}")
     return Gate(verdict.speed_limit_mm_s or float("inf"), "clear")
@@ -115,7 +122,7 @@ class MotionModule(Module):
             axle_x_mm=config.motor.axle_x_mm,
         )
         self.costmap = LocalCostmap(
-            self.cfg, config.tof.sensors, self.footprint, config.tof.effective_half_fov_deg
+            self.cfg, config.tof.sensors, self.footprint, config.tof.cone_half_deg
         )
         self.controller = MotionController(self.cfg, plan, self.costmap, self.footprint)
         self.collision_health: HealthStatus | None = None
@@ -160,7 +167,7 @@ class MotionModule(Module):
             self.cfg.stale_safety_s,
         )
         state, age = ctx.board.latest(CURRENT_STATE), ctx.board.age(CURRENT_STATE)
-        if (not gate.stop or gate.may_rotate) and (
+        if (not gate.stop or gate.may_rotate or gate.may_creep_ahead) and (
             state is None
             or age is None
             or age > self.cfg.stale_pose_s
@@ -186,6 +193,15 @@ class MotionModule(Module):
                 reason = f"turning on the spot; {gate.reason}"
                 status = self.controller.safety_status(command.status.instruction_id, now, reason)
                 self._send(ctx.board, 0.0, command.yaw_rate_dps, reason, status)
+                return
+        if gate.stop and gate.may_creep_ahead and state is not None and ins is not None:
+            # Held by something beside the body, nothing ahead: straight on keeps the gap.
+            limit = self.config.collision.creep_ahead_mm_s
+            command = self.controller.step(ins, state.msg.pose, now, dt, limit)
+            if command.speed_mm_s > 0:
+                reason = f"creeping straight ahead; {gate.reason}"
+                status = self.controller.safety_status(command.status.instruction_id, now, reason)
+                self._send(ctx.board, command.speed_mm_s, 0.0, reason, status)
                 return
         if gate.stop or state is None:
             self.controller.halt()

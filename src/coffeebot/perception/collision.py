@@ -26,6 +26,23 @@ the distance, and the memory is short.
 
 Side readings measure the gap from the body directly (the sensors sit on the body's sides),
 and so do front readings, so the radii apply to the raw distances.
+
+A front reading is judged by where it can lie: somewhere on the arc its cone spans at that
+range. Only the part of the arc inside the corridor the body sweeps driving ahead (its width
+plus ``corridor_margin_mm`` each side) is in the way, at its distance ahead of the front face;
+a toed-out outer sensor's glance off a side wall outside the corridor is not. A reading of
+the VL53L1X is the signal-weighted mean of what its cone sees, so the nearest thing in the
+arc is at most that far: the rule stays on the safe side of a blend.
+
+Things moving into the way are seen before they are in it by :class:`ReturnTracker`: a mover
+predicted inside the corridor ahead of the body stops the robot when the robot could not
+stop short of where it enters, and slows it when it could only at a lower speed.
+
+Held, the robot gets two ways out. A stop whose only cause is something ahead (no fault,
+sides clear, nothing coming nearer) may turn on the spot (``may_rotate``). A stop whose only
+cause is something within the side radius, with nothing ahead, may creep straight ahead
+(``may_creep_ahead``): driving straight keeps the side gap, and nothing turns a corner into
+it.
 """
 
 from __future__ import annotations
@@ -34,18 +51,28 @@ import math
 from collections.abc import Iterable
 from dataclasses import dataclass
 
-from coffeebot.config import CollisionConfig, TofSensorConfig
+import numpy as np
+
+from coffeebot.config import CollisionConfig, TofSensorConfig, TrackingConfig
 from coffeebot.messages import CollisionStatus, RangeReading, RangeScan, ReadingStatus, SafetyState
 from coffeebot.perception.geometry import NOTHING_IN_RANGE, valid_distance
+from coffeebot.perception.tracking import Intrusion, ReturnTracker
 
 FAILED = frozenset({ReadingStatus.HARDWARE_FAIL, ReadingStatus.BUS_ERROR})
 """Statuses meaning the sensor itself is broken: stop at once, do not wait for staleness."""
 
 _RANK = {SafetyState.GO: 0, SafetyState.SLOW: 1, SafetyState.STOP: 2}
 
+CLEARANCE_SMOOTHING = 0.2
+"""Weight of each new scan in the smoothed front clearance that ``may_rotate`` watches."""
+
+ARC_SAMPLES = 9
+"""Points along a front reading's arc when asking which part of it is in the corridor."""
+
 ROTATE_NOISE_MM = 10.0
 """How much the front clearance may read below its value at the start of a stop and still
-count as not decreasing while turning on the spot: two readings' noise (+/-5 mm each)."""
+count as not decreasing while turning on the spot: two readings' noise (+/-5 mm each) up
+close; a reading that reports a larger sigma (a blend, a dark target) gets twice that."""
 
 
 @dataclass(frozen=True)
@@ -70,6 +97,12 @@ class _Finding:
     distance_mm: int | None
     reason: str
     speed_limit_mm_s: float
+    gap_mm: float | None = None
+    """How far it is from where the body meets it: ahead of the front face, or off a side."""
+    moving: bool = False
+    """A tracked mover's predicted entry into the corridor, not a reading."""
+    sigma_mm: float = 0.0
+    """The sigma the sensor reported with its reading (0 when it said none)."""
 
 
 def stop_distance_mm(cfg: CollisionConfig, speed_mm_s: float) -> float:
@@ -102,11 +135,19 @@ class CollisionMonitor:
         max_speed_mm_s: float,
         max_range_mm: int = 4000,
         body_width_mm: float = 510.0,
+        body_length_mm: float = 610.0,
+        tracking: TrackingConfig | None = None,
+        axle_x_mm: float = 150.0,
     ) -> None:
         self.cfg = cfg
         self.sensors = {s.id: s for s in sensors}
         self.max_speed_mm_s = max_speed_mm_s
         self.max_range_mm = max_range_mm
+        self.half_width_mm = body_width_mm / 2.0
+        self.front_mm = body_length_mm / 2.0
+        self.axle_x_mm = axle_x_mm
+        self._front_sweep_mm = math.hypot(self.front_mm - axle_x_mm, self.half_width_mm)
+        """How far from the axle the front corners reach when the body turns on the spot."""
         self.state = SafetyState.STOP
         """Seed rule: the robot starts in "stop" and only goes once every face is clear."""
         self._missed = dict.fromkeys(self.sensors, cfg.stale_cycles)
@@ -118,12 +159,42 @@ class CollisionMonitor:
             if s.face == "front"
         }
         """Per front sensor: the range within which its whole cone lies inside the body's width."""
+        self._arcs = {
+            s.id: np.radians(s.yaw_deg + np.linspace(-s.fov_deg / 2, s.fov_deg / 2, ARC_SAMPLES))
+            for s in self.sensors.values()
+            if s.face == "front"
+        }
+        self.tracker = ReturnTracker(self.sensors.values(), tracking or TrackingConfig())
         self._memory: dict[int, _Sighting] = {}
         self._travel_mm = 0.0
         self._turned_deg = 0.0
         self._last_t: float | None = None
         self._stop_clearance: float | None = None
         """The front clearance when the current front stop began."""
+        self._clearance_ema: float | None = None
+        """The front clearance smoothed over scans (a noisy blend jitters by tens of mm)."""
+        self._side_gap: float | None = None
+        """The side gap when the current side hold began."""
+
+    def ahead_mm(self, sensor: TofSensorConfig, distance: float) -> float | None:
+        """How far ahead of the front face the part of a front reading's arc that lies in the
+        body's corridor is (None: no part of it does, so it is not in the way)."""
+        angles = self._arcs[sensor.id]
+        xs = sensor.x_mm + distance * np.cos(angles)
+        ys = sensor.y_mm + distance * np.sin(angles)
+        inside = np.abs(ys) <= self.half_width_mm + self.cfg.corridor_margin_mm
+        if not inside.any():
+            return None
+        return max(0.0, float(xs[inside].min()) - self.front_mm)
+
+    def beyond_front_sweep(self, sensor: TofSensorConfig, distance: float) -> bool:
+        """Whether every point of a front reading's arc is out of reach of the front corners
+        turning on the spot (with ``corridor_margin_mm`` to spare)."""
+        angles = self._arcs[sensor.id]
+        xs = sensor.x_mm + distance * np.cos(angles) - self.axle_x_mm
+        ys = sensor.y_mm + distance * np.sin(angles)
+        reach = self._front_sweep_mm + self.cfg.corridor_margin_mm
+        return bool(np.hypot(xs, ys).min() > reach)
 
     def _recall(self, sensor: TofSensorConfig, now: float) -> tuple[float, _Sighting] | None:
         """The remembered return of ``sensor`` and its distance now, unless it has expired."""
@@ -200,7 +271,7 @@ class CollisionMonitor:
                 SafetyState.STOP,
                 sensor,
                 None,
-                f"sensor {sensor.id} stale: no valid reading for {self._missed[sensor.id]} scans",
+                f"sensor {sensor.id} stale: no reading for {self._missed[sensor.id]} scans",
                 0.0,
             )
         seen = ""
@@ -212,6 +283,12 @@ class CollisionMonitor:
             seen = f" (seen {now - recalled[1].t_s:.1f} s ago)"
         if distance is None or distance > self.max_range_mm:
             return _Finding(SafetyState.GO, sensor, None, "clear", self.max_speed_mm_s)
+        gap: float = distance
+        if sensor.face == "front":
+            ahead = self.ahead_mm(sensor, distance)
+            if ahead is None:  # a glance outside the corridor: not in the way
+                return _Finding(SafetyState.GO, sensor, None, "clear", self.max_speed_mm_s)
+            gap = ahead
         # Leaving a zone needs extra clearance: the thresholds grow while we are inside it.
         margin = cfg.narrow_margin_mm if narrow else 0.0
         stop_at = self._radius(sensor.face, speed) + margin
@@ -221,19 +298,53 @@ class CollisionMonitor:
         if self.state is not SafetyState.GO:
             slow_at += cfg.hysteresis_mm
         what = f"{sensor.face} {'narrow ' if narrow else ''}obstacle at {distance} mm{seen}"
-        if distance < stop_at:
+        sigma = (reading.sigma_mm if reading is not None else None) or 0.0
+        if gap < stop_at:
             reason = f"{what}, stop distance {stop_at:.0f} mm"
-            return _Finding(SafetyState.STOP, sensor, distance, reason, 0.0)
-        if distance < slow_at:
+            return _Finding(SafetyState.STOP, sensor, distance, reason, 0.0, gap, sigma_mm=sigma)
+        if gap < slow_at:
             # Slow enough to stop before the seed's radius (plus any narrow margin), so the
             # robot creeps up to it.
-            room = distance - cfg.front_radius_mm - cfg.hysteresis_mm - margin
+            room = gap - cfg.front_radius_mm - cfg.hysteresis_mm - margin
             limit = max(cfg.min_slow_speed_mm_s, safe_speed_mm_s(cfg, room))
             reason = f"{what}, slowing"
             return _Finding(
-                SafetyState.SLOW, sensor, distance, reason, min(limit, self.max_speed_mm_s)
+                SafetyState.SLOW,
+                sensor,
+                distance,
+                reason,
+                min(limit, self.max_speed_mm_s),
+                gap,
+                sigma_mm=sigma,
             )
-        return _Finding(SafetyState.GO, sensor, distance, "clear", self.max_speed_mm_s)
+        return _Finding(
+            SafetyState.GO, sensor, distance, "clear", self.max_speed_mm_s, gap, sigma_mm=sigma
+        )
+
+    def _intrusion(self, speed: float) -> _Finding | None:
+        """A mover predicted in the corridor ahead: stop if the robot could not stop short of
+        where it enters, slow to a speed that could."""
+        cfg = self.cfg
+        horizon = (
+            cfg.reaction_latency_s + max(0.0, speed) / cfg.braking_mm_s2
+        ) + self.tracker.cfg.horizon_s
+        found: Intrusion | None = self.tracker.intrusion(
+            max(0.0, speed), self.front_mm, self.half_width_mm, horizon
+        )
+        if found is None:
+            return None
+        front = next(s for s in self.sensors.values() if s.face == "front")
+        what = (
+            f"someone moving into the way {found.ahead_mm:.0f} mm ahead in {found.time_s:.1f} s "
+            f"({found.speed_mm_s:.0f} mm/s)"
+        )
+        stop_at = stop_distance_mm(cfg, speed) + cfg.hysteresis_mm
+        if found.ahead_mm < stop_at:
+            return _Finding(SafetyState.STOP, front, None, what, 0.0, found.ahead_mm, True)
+        limit = max(cfg.min_slow_speed_mm_s, safe_speed_mm_s(cfg, found.ahead_mm - stop_at))
+        return _Finding(
+            SafetyState.SLOW, front, None, f"{what}, slowing", limit, found.ahead_mm, True
+        )
 
     def update(
         self,
@@ -250,29 +361,33 @@ class CollisionMonitor:
             self._travel_mm += max(0.0, speed) * (now - self._last_t)
             self._turned_deg += abs(yaw_rate_dps) * (now - self._last_t)
         self._last_t = now
+        self.tracker.update(scan, 0.0 if speed_mm_s is None else speed_mm_s, yaw_rate_dps)
         readings = {r.sensor: r for r in scan.readings}
         narrow = self.narrow(readings)
         findings = [
             self._assess(s, readings.get(s.id), speed, s.id in narrow, now)
             for s in self.sensors.values()
         ]
+        intrusion = self._intrusion(speed)
+        if intrusion is not None:
+            findings.append(intrusion)
         worst = max(
             findings,
             key=lambda f: (
                 _RANK[f.state],
                 -f.speed_limit_mm_s,
-                -(f.distance_mm if f.distance_mm is not None else math.inf),
+                -(f.gap_mm if f.gap_mm is not None else math.inf),
             ),
         )
         previous, self.state = self.state, worst.state
         front = [
-            f.distance_mm
+            (f.distance_mm, f.sigma_mm)
             for f in findings
-            if f.sensor.face == "front" and f.distance_mm is not None
+            if f.sensor.face == "front" and f.distance_mm is not None and not f.moving
         ]
-        clearance = min(front) if front else None
+        clearance, clearance_sigma = min(front) if front else (None, 0.0)
         if worst.state is SafetyState.GO:
-            self._stop_clearance = None
+            self._stop_clearance = self._side_gap = None
             reason = "clear again" if previous is not SafetyState.GO else "clear"
             return CollisionStatus(
                 state=SafetyState.GO,
@@ -282,32 +397,68 @@ class CollisionMonitor:
                 front_clearance_mm=clearance,
             )
         stops = [f for f in findings if f.state is SafetyState.STOP]
-        faces = tuple(sorted({f.sensor.face for f in stops if f.distance_mm is not None}))
-        may_rotate = self._may_rotate(stops, faces, clearance)
+        faces = tuple(
+            sorted({f.sensor.face for f in stops if f.distance_mm is not None and not f.moving})
+        )
         return CollisionStatus(
             state=worst.state,
             scan_seq=scan_seq,
             face=worst.sensor.face,
-            sensor=worst.sensor.id,
+            sensor=None if worst.moving else worst.sensor.id,
             distance_mm=worst.distance_mm,
             reason=worst.reason,
             speed_limit_mm_s=worst.speed_limit_mm_s,
             blocked_faces=faces,
             front_clearance_mm=clearance,
-            may_rotate=may_rotate,
+            may_rotate=self._may_rotate(stops, faces, clearance, clearance_sigma),
+            may_creep_ahead=self._may_creep(stops, faces, findings),
         )
 
     def _may_rotate(
-        self, stops: list[_Finding], faces: tuple[str, ...], clearance: int | None
+        self,
+        stops: list[_Finding],
+        faces: tuple[str, ...],
+        clearance: int | None,
+        sigma_mm: float,
     ) -> bool:
         """Turning on the spot is allowed only while every stop is an obstacle on the front
-        face (no sensor fault, sides clear) and the front clearance has not fallen since the
-        stop began: a turn that brings the front nearer, or anything coming closer, ends it."""
+        face (no sensor fault, no mover, sides clear) and either everything in the way is
+        out of the front corners' reach, or the (smoothed) front clearance has not fallen
+        since the stop began: a turn that brings the front nearer, or anything coming
+        closer, ends it."""
         front_only = bool(stops) and faces == ("front",)
-        front_only = front_only and all(f.distance_mm is not None for f in stops)
+        front_only = front_only and all(f.distance_mm is not None and not f.moving for f in stops)
         if not front_only or clearance is None:
-            self._stop_clearance = None
+            self._stop_clearance = self._clearance_ema = None
             return False
+        ema = self._clearance_ema
+        ema = clearance if ema is None else ema + CLEARANCE_SMOOTHING * (clearance - ema)
+        self._clearance_ema = ema
         if self._stop_clearance is None:
-            self._stop_clearance = clearance
-        return clearance >= self._stop_clearance - ROTATE_NOISE_MM
+            self._stop_clearance = ema
+        out_of_reach = all(
+            f.sensor.face == "front"
+            and f.distance_mm is not None
+            and self.beyond_front_sweep(f.sensor, f.distance_mm)
+            for f in stops
+        )
+        return out_of_reach or ema >= self._stop_clearance - max(ROTATE_NOISE_MM, 2.0 * sigma_mm)
+
+    def _may_creep(
+        self, stops: list[_Finding], faces: tuple[str, ...], findings: list[_Finding]
+    ) -> bool:
+        """Creeping straight ahead is allowed while every stop is something within a side
+        radius (no fault, no mover), nothing is in the way ahead, and the side gap has not
+        shrunk since the hold began."""
+        sides_only = bool(stops) and all(face in ("left", "right") for face in faces)
+        sides_only = sides_only and all(f.distance_mm is not None and not f.moving for f in stops)
+        ahead_clear = all(
+            f.state is SafetyState.GO for f in findings if f.sensor.face in ("front", "rear")
+        )
+        if not sides_only or not ahead_clear:
+            self._side_gap = None
+            return False
+        gap = min(float(f.distance_mm or 0) for f in stops)
+        if self._side_gap is None:
+            self._side_gap = gap
+        return gap >= self._side_gap - ROTATE_NOISE_MM

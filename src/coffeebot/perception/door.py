@@ -147,7 +147,7 @@ class DoorDetector:
     ) -> None:
         self.cfg = cfg
         self.half_fov_deg = half_fov_deg
-        """The ranging model: a reading is the nearest return within this of the axis."""
+        """Half the sensors' cone: how far a recess edge blurs across the wall it is on."""
         self.target_room = target_room
         self.tracks = {
             s.id: _Track(s, 2 * cfg.max_readings_per_door)

@@ -409,7 +409,7 @@ class SensorArray:
         partial = np.flatnonzero(np.any(~tall & np.isfinite(t), axis=(0, 1)))
         if len(partial):
             tp = t[..., partial][:, :, None, :]  # (S, A, 1, P)
-            z = oz[..., None] + tp * tan_el[..., None]
+            z = oz[..., None] + np.where(np.isfinite(tp), tp, 0.0) * tan_el[..., None]
             met = (z >= seg[partial, 4]) & (z <= seg[partial, 5]) & np.isfinite(tp)
             tp = np.where(met, tp, np.inf)
             k = tp.argmin(-1)[..., None]
