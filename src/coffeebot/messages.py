@@ -65,6 +65,20 @@ class ReadingStatus(StrEnum):
     OTHER = "other"
 
 
+NOTHING_IN_RANGE = frozenset(
+    {
+        ReadingStatus.NO_TARGET,
+        ReadingStatus.OUT_OF_BOUNDS,
+        ReadingStatus.SIGNAL_FAIL,
+        ReadingStatus.SIGMA_FAIL,
+    }
+)
+"""Statuses of a sensor that ranged and found nothing it can measure: the face is clear, not
+blind. On the VL53L1X "nothing in view" is a signal fail (too little light came back) and a
+far or dark target is a signal or sigma fail; a near target of any size returns enough light
+to be valid (docs/sensor-model.md)."""
+
+
 class RangeReading(Message):
     """One VL53L1X ranging. ``distance_mm`` is set only for a valid status (under a bad one
     the chip's distance register holds a number that is often garbage); signal, ambient and

@@ -295,11 +295,23 @@ def test_a_front_only_stop_allows_turning_on_the_spot() -> None:
 
 
 def test_turning_that_brings_the_front_nearer_is_refused() -> None:
+    """Within reach of the front corners a turn may only open the gap. The clearance is
+    smoothed over scans, so a noisy reading alone does not end the turn."""
     m = monitor()
     m.update(scan(CLEAR, t=0.0), 0, 1)
-    assert m.update(scan({**CLEAR, 2: 400}, t=0.1), 0, 2).may_rotate
-    nearer = m.update(scan({**CLEAR, 2: 350}, t=0.2), 0, 3)
+    assert m.update(scan({**CLEAR, 2: 200}, t=0.1), 0, 2).may_rotate
+    assert not m.beyond_front_sweep(STRAIGHT[2], 200)
+    assert m.update(scan({**CLEAR, 2: 185}, t=0.2), 0, 3).may_rotate  # noise
+    nearer = m.update(scan({**CLEAR, 2: 120}, t=0.3), 0, 4)
     assert nearer.state is SafetyState.STOP and not nearer.may_rotate
+
+
+def test_anything_out_of_the_front_corners_reach_never_stops_a_turn() -> None:
+    m = monitor()
+    m.update(scan(CLEAR, t=0.0), 0, 1)
+    assert m.beyond_front_sweep(STRAIGHT[3], 400)
+    assert m.update(scan({**CLEAR, 3: 400}, t=0.1), 0, 2).may_rotate
+    assert m.update(scan({**CLEAR, 3: 300}, t=0.2), 0, 3).may_rotate
 
 
 def test_a_side_stop_or_a_sensor_fault_never_allows_turning() -> None:

@@ -19,12 +19,12 @@ from coffeebot.hardware.motor import MotorController
 from coffeebot.hardware.serial_port import SerialPort, open_port
 from coffeebot.hardware.tca9548a import TCA9548A
 from coffeebot.hardware.vl53l1x import MODEL_ID, VL53L1X, DistanceMode
-from coffeebot.messages import ReadingStatus
+from coffeebot.messages import NOTHING_IN_RANGE, ReadingStatus
 
 PORT_TIMEOUT_S = 0.2
 TOF_SAMPLES = 5
-WORKING = frozenset({ReadingStatus.VALID, ReadingStatus.OUT_OF_BOUNDS})
-"""A distance, or nothing in range (an open door, a long hallway): the sensor works."""
+WORKING = frozenset({ReadingStatus.VALID, *NOTHING_IN_RANGE})
+"""A distance, or nothing it can range (an open door, a long hallway): the sensor works."""
 FAULT_ENV = "COFFEEBOT_SIM_FAULT"
 FAULTS = ("mux-nack", "tof<N>-nack", "tof<N>-status", "i2c-timeout", "uwb-unplug", "motor-unplug")
 
@@ -192,7 +192,7 @@ def simulated_robot(config: RobotConfig, fault: str | None) -> Iterator[tuple[Ro
                 if kind == "nack":
                     sim.nack = True
                 else:
-                    sim.forced_status = 4
+                    sim.forced_status = 3  # a hardware (VCSEL) failure on every ranging
             case ["uwb", "unplug"]:
                 dwm.unplug()
             case ["motor", "unplug"]:

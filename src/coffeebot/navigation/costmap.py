@@ -33,8 +33,8 @@ import numpy as np
 
 from coffeebot.config import MotionConfig, TofSensorConfig
 from coffeebot.floorplan import Floor, segment_distances
-from coffeebot.messages import RangeScan, ReadingStatus
-from coffeebot.perception.geometry import NOTHING_IN_RANGE, sensor_origin
+from coffeebot.messages import NOTHING_IN_RANGE, RangeScan, ReadingStatus
+from coffeebot.perception.geometry import sensor_origin
 
 MAX_MARK_MM = 1500.0
 """Readings beyond this are too noisy to mark (seed 000: noise above ~1000 mm in mid mode)."""

@@ -54,8 +54,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from coffeebot.config import CollisionConfig, TofSensorConfig, TrackingConfig
-from coffeebot.messages import CollisionStatus, RangeReading, RangeScan, ReadingStatus, SafetyState
-from coffeebot.perception.geometry import NOTHING_IN_RANGE, valid_distance
+from coffeebot.messages import (
+    NOTHING_IN_RANGE,
+    CollisionStatus,
+    RangeReading,
+    RangeScan,
+    ReadingStatus,
+    SafetyState,
+)
+from coffeebot.perception.geometry import valid_distance
 from coffeebot.perception.tracking import Intrusion, ReturnTracker
 
 FAILED = frozenset({ReadingStatus.HARDWARE_FAIL, ReadingStatus.BUS_ERROR})

@@ -33,8 +33,15 @@ import numpy as np
 
 from coffeebot.config import DoorConfig, TofSensorConfig
 from coffeebot.floorplan import Door, Floor, Opening, Side
-from coffeebot.messages import DoorEvent, PoseEstimate, RangeReading, RangeScan, ReadingStatus
-from coffeebot.perception.geometry import NOTHING_IN_RANGE, TravelFrame, sensor_origin
+from coffeebot.messages import (
+    NOTHING_IN_RANGE,
+    DoorEvent,
+    PoseEstimate,
+    RangeReading,
+    RangeScan,
+    ReadingStatus,
+)
+from coffeebot.perception.geometry import TravelFrame, sensor_origin
 
 MIN_VISIBLE_MM = 200.0
 """The least of a door a side sensor is assumed to see, however far the wall."""

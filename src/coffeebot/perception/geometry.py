@@ -44,20 +44,6 @@ def side_pairs(sensors: Iterable[TofSensorConfig]) -> dict[Side, SidePair]:
     return pairs
 
 
-NOTHING_IN_RANGE = frozenset(
-    {
-        ReadingStatus.NO_TARGET,
-        ReadingStatus.OUT_OF_BOUNDS,
-        ReadingStatus.SIGNAL_FAIL,
-        ReadingStatus.SIGMA_FAIL,
-    }
-)
-"""Statuses of a sensor that ranged and found nothing it can measure: the face is clear, not
-blind. On the VL53L1X "nothing in view" is a signal fail (too little light came back) and a
-far or dark target is a signal or sigma fail; a near target of any size returns enough light
-to be valid (docs/sensor-model.md)."""
-
-
 def valid_distance(reading: RangeReading | None) -> int | None:
     """The distance of a healthy, valid reading, else None."""
     if reading is None or not reading.healthy or reading.status is not ReadingStatus.VALID:
