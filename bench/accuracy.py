@@ -23,6 +23,7 @@ motors, wheel slip, a biased gyro and ~0.1 m UWB fixes.
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import math
 import sys
@@ -32,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from coffeebot.config import RobotConfig, load_robot_config
+from coffeebot.config import RobotConfig, TofSensorConfig, load_robot_config
 from coffeebot.floorplan import Door, Floor, FloorPlan, load_floorplan
 from coffeebot.messages import (
     AngleEstimate,
@@ -41,14 +42,16 @@ from coffeebot.messages import (
     RangeScan,
     SafetyState,
 )
+from coffeebot.navigation.control import lane_heading_deg, turn_rate_dps, wheel_speeds
 from coffeebot.perception.angle import AngleEstimator, Rejection, pair_angle_deg
 from coffeebot.perception.collision import CollisionMonitor
 from coffeebot.perception.door import DoorDetector
 from coffeebot.perception.geometry import TravelFrame, side_pairs, valid_distance, wrap_deg
 from coffeebot.perception.state import StateEstimator
+from coffeebot.perception.walls import explained_points
 from coffeebot.sim.world import ObstacleSpec, Pose, RobotSpec, World
 from coffeebot.sim.world.obstacles import obstacle_surfaces
-from coffeebot.sim.world.tof import ToFReading, as_range_reading
+from coffeebot.sim.world.tof import ToFReading, as_range_reading, robot_setup
 from coffeebot.sim.world.trace import hallway_pass, hallway_pose
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -92,7 +95,7 @@ def _measure_angle(
     estimator = AngleEstimator(config.tof.sensors, config.angle, config.tof.effective_half_fov_deg)
     result: AngleEstimate | Rejection = Rejection("no scans")
     for k in range(config.angle.scans_per_estimate):
-        scan = to_scan(world.scan(), k / SCAN_HZ)
+        scan = to_scan(world.scan(robot_setup(config.tof)), k / SCAN_HZ)
         result = estimator.update(scan, k, prior, floor, False, k / SCAN_HZ)
     return result
 
@@ -100,7 +103,8 @@ def _measure_angle(
 def _seed_rule_angle(world: World, config: RobotConfig, side: str) -> float | None:
     """What the seed's rule alone computes from one side's raw pair (no checks)."""
     pair = side_pairs(config.tof.sensors)[side]  # type: ignore[index]
-    readings = {i: valid_distance(r) for i, r in enumerate(to_scan(world.scan(), 0).readings)}
+    scan = to_scan(world.scan(robot_setup(config.tof)), 0)
+    readings = {i: valid_distance(r) for i, r in enumerate(scan.readings)}
     front, rear = readings.get(pair.front.id), readings.get(pair.rear.id)
     if front is None or rear is None:
         return None
@@ -194,7 +198,13 @@ def bench_door(plan: FloorPlan, config: RobotConfig, spec: RobotSpec, speeds: li
                 plan, spec, floor=level, pose=hallway_pose(floor, 600, LANE_D_MM), seed=speed
             )
             end = floor.hallway.length_mm - 700
-            rows = hallway_pass(world, speed_mm_s=speed, to_s_mm=end, rate_hz=SCAN_HZ)
+            rows = hallway_pass(
+                world,
+                speed_mm_s=speed,
+                to_s_mm=end,
+                rate_hz=SCAN_HZ,
+                setup=robot_setup(config.tof),
+            )
             distance_m += (rows[-1].s_mm - rows[0].s_mm) / 1000.0
             detector = DoorDetector(
                 config.tof.sensors, config.door, config.tof.cone_half_deg
@@ -265,15 +275,24 @@ def _approach(
         max_speed_mm_s=config.motor.max_speed_mm_s,
         max_range_mm=config.tof.max_range_mm,
         body_width_mm=config.geometry.width_mm,
+        body_length_mm=config.geometry.length_mm,
+        tracking=config.tracking,
+        axle_x_mm=config.motor.axle_x_mm,
     )
-    half_base = spec.wheel_base_mm / 2
+    setup = robot_setup(config.tof)
     clearance = math.inf
     stopped_for = 0.0
     seq = 0
     while world.t_s < 5000 / speed + 8.0:
         seq += 1
         left, right = world.wheel_speeds_mm_s
-        verdict = monitor.update(to_scan(world.scan(), world.t_s), (left + right) / 2, seq)
+        # As the collision module with a good pose: the plan's walls place what they explain.
+        explain = functools.partial(
+            _explained, floor, known_pose(world.pose, obstacle.floor, 10, 1), config
+        )
+        verdict = monitor.update(
+            to_scan(world.scan(setup), world.t_s), (left + right) / 2, seq, 0.0, explain
+        )
         target = {
             SafetyState.GO: speed,
             SafetyState.SLOW: min(speed, verdict.speed_limit_mm_s),
@@ -281,9 +300,10 @@ def _approach(
         }[verdict.state]
         pose = world.pose
         s, d = floor.to_hallway(pose.x_mm, pose.y_mm)
-        heading_error = math.radians(wrap_deg(pose.heading_deg - floor.hallway.heading_deg))
-        turn = 2.0 * (-0.004 * (d - LANE_D_MM) - heading_error) * half_base if target else 0.0
-        world.command_wheels(target - turn, target + turn)
+        # Lane keeping as motion does it (pure pursuit on the lane, heading hold).
+        heading = lane_heading_deg(floor.hallway.heading_deg, LANE_D_MM - d, config.motion)
+        turn = turn_rate_dps(pose.heading_deg, heading, config.motion) if target else 0.0
+        world.command_wheels(*wheel_speeds(target, turn, spec.wheel_base_mm))
         world.step(1.0 / SCAN_HZ)
         clearance = min(clearance, _clearance(world, obstacle))
         stopped_for = stopped_for + 1.0 / SCAN_HZ if abs(world.body.state.speed_mm_s) < 1 else 0
@@ -297,6 +317,12 @@ def _approach(
         "clearance_mm": round(clearance, 1) if math.isfinite(clearance) else None,
         "impact_speed_mm_s": round(hits[0].speed_mm_s, 1) if hits else None,
     }
+
+
+def _explained(
+    floor: Floor, pose: PoseEstimate, config: RobotConfig, sensor: TofSensorConfig, distance: int
+) -> np.ndarray | None:
+    return explained_points(floor, pose, sensor, distance, config.motion.wall_margin_mm, 2.0)
 
 
 def _obstacles(floor: Floor) -> list[ObstacleSpec]:
@@ -422,7 +448,7 @@ def bench_localization(plan: FloorPlan, config: RobotConfig, spec: RobotSpec, sp
                     state.on_uwb(fix, now)
                     uwb.append(math.hypot(fix.x_mm - pose.x_mm, fix.y_mm - pose.y_mm))
                 estimate = state.pose()
-                scan = to_scan(world.scan(), now)
+                scan = to_scan(world.scan(robot_setup(config.tof)), now)
                 result = angle.update(scan, tick, estimate, floor, False, now)
                 if isinstance(result, AngleEstimate):
                     state.on_angle(result, now)

@@ -22,16 +22,18 @@ from coffeebot.modules.motion import MotionModule
 from coffeebot.navigation.control import wheel_speeds
 from coffeebot.perception.collision import CollisionMonitor
 from coffeebot.sim.world import World
-from coffeebot.sim.world.tof import as_range_reading
+from coffeebot.sim.world.tof import as_range_reading, robot_setup
 
 ROOT = Path(__file__).resolve().parents[2]
 CONFIG: RobotConfig = load_robot_config(ROOT / "boards" / "coffeebot-v1.toml")
 PLAN: FloorPlan = load_floorplan(ROOT / "floorplans" / "cs-building.toml")
 DT = 0.05
+SETUP = robot_setup(CONFIG.tof)
+"""The chips set up as the ToF poller sets them up."""
 
 
 def to_scan(world: World) -> RangeScan:
-    readings = [as_range_reading(k, r) for k, r in enumerate(world.scan())]
+    readings = [as_range_reading(k, r) for k, r in enumerate(world.scan(SETUP))]
     return RangeScan(cycle_start_s=world.t_s, cycle_time_s=DT, readings=readings)
 
 

@@ -147,9 +147,15 @@ def test_status_rules_follow_the_chip_thresholds() -> None:
     assert range_once(returns(wall(2000)), short, None, rng).status is (
         ReadingStatus.OUT_OF_BOUNDS
     )
-    blend = returns(wall(1500) + pole(500))
-    strict = RangingSetup(sigma_limit_mm=blend.spread_mm / 2)
-    assert range_once(blend, strict, None, rng).status is ReadingStatus.SIGMA_FAIL
+    # A blend of a pole and a wall reports a larger sigma than the wall alone: a limit
+    # between the two fails the blend only.
+    blend, alone = returns(wall(1500) + pole(500)), returns(wall(950))
+    blend_sigma = range_once(blend, DEFAULT_SETUP, RangingNoise(), rng).sigma_mm
+    alone_sigma = range_once(alone, DEFAULT_SETUP, RangingNoise(), rng).sigma_mm
+    assert blend_sigma > alone_sigma
+    strict = RangingSetup(sigma_limit_mm=(blend_sigma + alone_sigma) / 2)
+    assert range_once(blend, strict, RangingNoise(), rng).status is ReadingStatus.SIGMA_FAIL
+    assert range_once(alone, strict, RangingNoise(), rng).status is ReadingStatus.VALID
     assert exact(wall(30)).status is ReadingStatus.TOO_CLOSE
 
 

@@ -1,30 +1,41 @@
-"""Collision module: every scan becomes a stop/slow/go verdict in the same loop turn."""
+"""Collision module: every scan becomes a stop/slow/go verdict in the same loop turn.
+
+With a fresh, confident pose the floor plan's walls place the front readings they explain
+(``perception/walls.py``); without one every reading keeps its whole arc, the safe side.
+"""
 
 from __future__ import annotations
 
 import math
 from typing import ClassVar
 
-from coffeebot.config import RobotConfig
+import numpy as np
+
+from coffeebot.config import RobotConfig, TofSensorConfig
+from coffeebot.floorplan import FloorPlan
 from coffeebot.logs import Event, Transitions
-from coffeebot.messages import COLLISION, ODOMETRY, RANGE_SCAN, SafetyState
+from coffeebot.messages import COLLISION, CURRENT_STATE, ODOMETRY, RANGE_SCAN, SafetyState
 from coffeebot.modules.base import Module, ModuleContext
-from coffeebot.perception.collision import CollisionMonitor
+from coffeebot.perception.collision import CollisionMonitor, Explainer
+from coffeebot.perception.walls import explained_points
 
 ODOMETRY_STALE_S = 0.5
 """Odometry older than this is no speed: the monitor assumes the worst."""
+MAX_HEADING_SIGMA_DEG = 5.0
+"""A pose heading less certain than this places no reading on the plan's walls."""
 
 
 class CollisionModule(Module):
     """Wraps :class:`CollisionMonitor`; speed comes from the latest odometry."""
 
     name = "collision"
-    inputs = (RANGE_SCAN, ODOMETRY)
+    inputs = (RANGE_SCAN, ODOMETRY, CURRENT_STATE)
     outputs = (COLLISION,)
     critical: ClassVar[bool] = True
 
-    def __init__(self, config: RobotConfig) -> None:
+    def __init__(self, config: RobotConfig, plan: FloorPlan) -> None:
         self.config = config
+        self.plan = plan
         self.monitor = self._new_monitor()
 
     def _new_monitor(self) -> CollisionMonitor:
@@ -50,6 +61,23 @@ class CollisionModule(Module):
         yaw_rate = math.degrees((right - left) / self.config.motor.wheel_base_mm)
         return (left + right) / 2.0, yaw_rate
 
+    def _explainer(self, ctx: ModuleContext) -> Explainer | None:
+        """Wall explanations from the latest pose, if it is fresh and its heading good."""
+        state, age = ctx.board.latest(CURRENT_STATE), ctx.board.age(CURRENT_STATE)
+        if state is None or age is None or age > self.config.motion.stale_pose_s:
+            return None
+        pose = state.msg.pose
+        if not pose.initialised or pose.sigma_heading_deg > MAX_HEADING_SIGMA_DEG:
+            return None
+        floor = self.plan.floor(pose.floor)
+        tolerance = self.config.motion.wall_margin_mm
+        slack = 2.0 * pose.sigma_heading_deg
+
+        def explain(sensor: TofSensorConfig, distance: int) -> np.ndarray | None:
+            return explained_points(floor, pose, sensor, distance, tolerance, slack)
+
+        return explain
+
     async def run(self, ctx: ModuleContext) -> None:
         # A restart forgets everything: back to "stop" until every face is clear again.
         self.monitor = self._new_monitor()
@@ -59,7 +87,9 @@ class CollisionModule(Module):
             async for envelope in scans:
                 # No await between reading the scan and publishing the verdict.
                 speed, yaw_rate = self._motion(ctx)
-                status = self.monitor.update(envelope.msg, speed, envelope.seq, yaw_rate)
+                status = self.monitor.update(
+                    envelope.msg, speed, envelope.seq, yaw_rate, self._explainer(ctx)
+                )
                 ctx.board.publish(COLLISION, status)
                 stopped = status.state is SafetyState.STOP
                 safety.update(

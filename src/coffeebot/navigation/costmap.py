@@ -35,6 +35,7 @@ from coffeebot.config import MotionConfig, TofSensorConfig
 from coffeebot.floorplan import Floor, segment_distances
 from coffeebot.messages import NOTHING_IN_RANGE, RangeScan, ReadingStatus
 from coffeebot.perception.geometry import sensor_origin
+from coffeebot.perception.walls import wall_ranges
 
 MAX_MARK_MM = 1500.0
 """Readings beyond this are too noisy to mark (seed 000: noise above ~1000 mm in mid mode)."""
@@ -42,22 +43,6 @@ MAX_MARK_MM = 1500.0
 EXPLAIN_RAYS = 15
 """Rays sampled across the widened cone when asking whether the plan's walls explain a
 reading: finer than the marking, since a grazing wall is met only near the cone's edge."""
-
-
-def expected_range_mm(floor: Floor, x_mm: float, y_mm: float, angles: np.ndarray) -> np.ndarray:
-    """Range from (x, y) to the first plan wall along each ray (inf where there is none)."""
-    seg = floor.segment_array
-    if seg.size == 0:
-        return np.full(np.shape(angles), math.inf)
-    dx, dy = np.cos(angles)[:, None], np.sin(angles)[:, None]
-    ex, ey = (seg[:, 2] - seg[:, 0])[None, :], (seg[:, 3] - seg[:, 1])[None, :]
-    wx, wy = (seg[:, 0] - x_mm)[None, :], (seg[:, 1] - y_mm)[None, :]
-    denom = dx * ey - dy * ex
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = (wx * ey - wy * ex) / denom
-        u = (wx * dy - wy * dx) / denom
-    hit = (np.abs(denom) > 1e-9) & (t > 0) & (u >= 0) & (u <= 1)
-    return np.where(hit, t, math.inf).min(axis=1)
 
 
 @dataclass(frozen=True)
@@ -198,7 +183,7 @@ class LocalCostmap:
                 self.clear_t[i, j] = now
             if distance is None or distance > MAX_MARK_MM:
                 continue
-            wall = expected_range_mm(floor, sx, sy, math.radians(look) + self._explain).min()
+            wall = wall_ranges(floor, sx, sy, math.radians(look) + self._explain).min()
             if wall <= distance + self.cfg.wall_margin_mm:
                 continue  # the plan's walls explain the reading
             angles = math.radians(look) + self._spread

@@ -48,7 +48,7 @@ it.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -72,6 +72,9 @@ _RANK = {SafetyState.GO: 0, SafetyState.SLOW: 1, SafetyState.STOP: 2}
 
 CLEARANCE_SMOOTHING = 0.2
 """Weight of each new scan in the smoothed front clearance that ``may_rotate`` watches."""
+
+Explainer = Callable[[TofSensorConfig, int], "np.ndarray | None"]
+"""Where the plan's walls put a front reading (robot-frame points), or None."""
 
 ARC_SAMPLES = 9
 """Points along a front reading's arc when asking which part of it is in the corridor."""
@@ -183,13 +186,23 @@ class CollisionMonitor:
         self._side_gap: float | None = None
         """The side gap when the current side hold began."""
 
-    def ahead_mm(self, sensor: TofSensorConfig, distance: float) -> float | None:
-        """How far ahead of the front face the part of a front reading's arc that lies in the
-        body's corridor is (None: no part of it does, so it is not in the way)."""
-        angles = self._arcs[sensor.id]
-        xs = sensor.x_mm + distance * np.cos(angles)
-        ys = sensor.y_mm + distance * np.sin(angles)
-        inside = np.abs(ys) <= self.half_width_mm + self.cfg.corridor_margin_mm
+    def ahead_mm(
+        self, sensor: TofSensorConfig, distance: float, where: np.ndarray | None = None
+    ) -> float | None:
+        """How far ahead of the front face the part of a front reading that lies in the body's
+        corridor is (None: no part of it does, so it is not in the way). The reading lies
+        somewhere on the arc its cone spans, or at robot-frame points ``where`` (k, 2) when
+        the plan's walls explain it."""
+        if where is None:
+            angles = self._arcs[sensor.id]
+            xs = sensor.x_mm + distance * np.cos(angles)
+            ys = sensor.y_mm + distance * np.sin(angles)
+            margin = self.cfg.corridor_margin_mm
+        else:
+            # A wall return is where the plan says: only the seed's side radius is kept.
+            xs, ys = where[:, 0], where[:, 1]
+            margin = self.cfg.side_radius_mm
+        inside = np.abs(ys) <= self.half_width_mm + margin
         if not inside.any():
             return None
         return max(0.0, float(xs[inside].min()) - self.front_mm)
@@ -259,6 +272,7 @@ class CollisionMonitor:
         speed: float,
         narrow: bool,
         now: float,
+        explain: Explainer | None,
     ) -> _Finding:
         cfg = self.cfg
         if reading is not None and (not reading.healthy or reading.status in FAILED):
@@ -292,7 +306,8 @@ class CollisionMonitor:
             return _Finding(SafetyState.GO, sensor, None, "clear", self.max_speed_mm_s)
         gap: float = distance
         if sensor.face == "front":
-            ahead = self.ahead_mm(sensor, distance)
+            where = None if explain is None or seen else explain(sensor, distance)
+            ahead = self.ahead_mm(sensor, distance, where)
             if ahead is None:  # a glance outside the corridor: not in the way
                 return _Finding(SafetyState.GO, sensor, None, "clear", self.max_speed_mm_s)
             gap = ahead
@@ -359,9 +374,11 @@ class CollisionMonitor:
         speed_mm_s: float | None,
         scan_seq: int,
         yaw_rate_dps: float = 0.0,
+        explain: Explainer | None = None,
     ) -> CollisionStatus:
         """The verdict for ``scan`` at forward speed ``speed_mm_s`` (None: unknown, assume max)
-        while turning at ``yaw_rate_dps``."""
+        while turning at ``yaw_rate_dps``; ``explain`` places readings the floor plan's walls
+        explain (given only with a pose to trust)."""
         speed = self.max_speed_mm_s if speed_mm_s is None else speed_mm_s
         now = scan.cycle_start_s
         if self._last_t is not None and now > self._last_t:
@@ -372,7 +389,7 @@ class CollisionMonitor:
         readings = {r.sensor: r for r in scan.readings}
         narrow = self.narrow(readings)
         findings = [
-            self._assess(s, readings.get(s.id), speed, s.id in narrow, now)
+            self._assess(s, readings.get(s.id), speed, s.id in narrow, now, explain)
             for s in self.sensors.values()
         ]
         intrusion = self._intrusion(speed)

@@ -48,6 +48,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 from scipy.special import ndtr
 
+from coffeebot.config import TofConfig
 from coffeebot.hardware.vl53l1x import FULL_ROI, MIN_RANGE_MM, SPADS, SpadRoi
 from coffeebot.messages import RangeReading, ReadingStatus
 from coffeebot.sim.world.geometry import Surfaces
@@ -76,10 +77,11 @@ class ConeOptics(BaseModel):
         "17 % one to ~1.6 m (the datasheet's long-mode figures)",
     )
     ambient_mcps: float = Field(
-        0.02,
+        0.001,
         ge=0,
         description="ambient count rate on the full ROI: office lighting (LEDs and "
-        "fluorescent tubes emit almost nothing at 940 nm); strong sunlight is ~40",
+        "fluorescent tubes emit almost nothing at 940 nm, the register reads 0); strong "
+        "sunlight is ~40",
     )
     floor_reflectance: float = Field(
         0.3, ge=0, le=1, description="linoleum or carpet; met at grazing angles, so weak"
@@ -136,7 +138,19 @@ class RangingSetup(NamedTuple):
 
 
 DEFAULT_SETUP = RangingSetup()
-"""Long mode, a 20 ms budget and the ULD's default thresholds: the robot's sensors."""
+"""Long mode, a 20 ms budget and the ULD's default thresholds (what ST's figures use)."""
+
+
+def robot_setup(tof: TofConfig) -> RangingSetup:
+    """How the ToF poller sets the chips up from the robot description."""
+    short = tof.distance_mode == "short"
+    return RangingSetup(
+        max_range_mm=1300.0 if short else 4000.0,
+        timing_budget_ms=tof.timing_budget_ms,
+        sigma_limit_mm=tof.sigma_limit_mm,
+        min_signal_mcps=tof.min_signal_mcps,
+        short_mode=short,
+    )
 
 
 class Returns(NamedTuple):
