@@ -203,6 +203,9 @@ class AngleConfig(Section):
     """Seed 000 angle correction from a side's sensor pair, with the door-straddle checks."""
 
     max_side_distance_mm: float = Field(850.0, gt=0, description="both side sensors below")
+    max_sigma_mm: float = Field(
+        20.0, gt=0, description="readings the sensor reports a larger sigma for are not used"
+    )
     min_angle_deg: float = Field(5.0, ge=0, description="smaller angles are no correction")
     scans_per_estimate: int = Field(
         8, ge=1, description="accepted scans averaged (heading changes compensated) per angle"
