@@ -9,11 +9,11 @@ Beyond the seed: every reading is stored with where its ray met the wall along t
 (from the pose at the time), so a detection is turned into a position. The seed's rule finds
 the rising edge (the split of the window with the largest step); the same rule mirrored finds
 the falling edge where the wall comes back, and the door's centre is the midpoint of the two.
-A cone reporting the nearest return blurs both edges inwards by the same amount (its
-footprint on the wall, ~210 mm at 890 mm for a 27 degree cone, and less or more depending on
-how much of the cone a weak target must fill), so the midpoint is free of that bias whatever
-the cone's true ranging behaviour; a single edge would need the footprint correction, which
-is only as good as the ranging model. The price is a later event: the door is reported once
+A cone blurs both edges by the same amount (a signal-weighted reading ramps from the wall to
+the recess as the edge crosses the cone's footprint, ~210 mm at 890 mm for a 27 degree cone,
+and the near wall weighs more than the deeper recess), so the midpoint is free of that bias
+whatever the cone's true ranging behaviour; a single edge would need the footprint
+correction, which is only as good as the ranging model. The price is a later event: the door is reported once
 the sensor has passed it. If the wall does not come back within ``max_feature_mm`` (a wide
 opening, a missed edge), the near edge alone is used with the footprint correction and the
 plan's width. The centre is matched to the floor plan's doors and openings on that side,
@@ -52,9 +52,9 @@ def readings_per_door(
 ) -> int:
     """How many readings one door spans at this speed and scan rate (clamped to the config).
 
-    ``visible_mm`` is the stretch over which the sensor actually reads the recess: a sensor
-    reporting the nearest return in its cone sees the door only once the whole cone is past
-    the edge, so a far wall shortens it (default: the whole door width).
+    ``visible_mm`` is the stretch over which the sensor actually reads the recess: the cone's
+    footprint on the wall blurs both edges, so a far wall shortens it (default: the whole
+    door width).
     """
     width = cfg.door_width_mm if visible_mm is None else visible_mm
     step = abs(speed_mm_s) / scan_rate_hz
