@@ -64,8 +64,8 @@ class ConeOptics(BaseModel):
     spad_pitch_deg: float = Field(1.25, gt=0, description="field of view per SPAD column")
     blur_deg: float = Field(3.3, gt=0, description="optical blur of a SPAD's view (sigma)")
     emitter_sigma_deg: float = Field(15.0, gt=0, description="the emitter's beam (sigma)")
-    azimuth_step_deg: float = Field(1.0, gt=0)
-    elevation_step_deg: float = Field(2.0, gt=0)
+    azimuth_step_deg: float = Field(1.25, gt=0)
+    elevation_step_deg: float = Field(2.5, gt=0)
     reach_deg: float = Field(
         18.0, gt=0, description="directions cast from the axis; the response is < 1 % beyond"
     )
@@ -364,8 +364,9 @@ class SensorArray:
         bg_t, bg_gain = self._background(surfaces, ox, oy, oz, dx, dy)
         paths = [bg_t[..., None]]
         gains = [bg_gain[..., None]]
-        if len(surfaces.cylinders):
-            cyl_t, cyl_gain, through = self._poles(surfaces, ox, oy, oz, azimuths, bg_t)
+        poles = self._poles(surfaces, ox, oy, oz, azimuths, bg_t)
+        if poles is not None:
+            cyl_t, cyl_gain, through = poles
             gains[0] = gains[0] * through[..., None]
             paths.append(cyl_t)
             gains.append(cyl_gain)
@@ -444,11 +445,13 @@ class SensorArray:
         oz: np.ndarray,
         azimuths: np.ndarray,
         bg_t: np.ndarray,
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """Poles in front of the background: per (S, A, E, pole) horizontal distance and
         visible share x reflectance x cos(incidence), nearest pole first, and the share of
-        each direction that gets through all of them (S, A, E)."""
+        each direction that gets through all of them (S, A, E); None when no cone sees one."""
         cyl = surfaces.cylinders
+        if not len(cyl):
+            return None
         order = np.argsort(np.hypot(cyl[:, 0] - ox.mean(), cyl[:, 1] - oy.mean()))
         cyl, reflect = cyl[order], surfaces.cylinder_reflectance[order]
         cx, cy, r = cyl[:, 0] - ox, cyl[:, 1] - oy, cyl[:, 2]  # (S, K)
@@ -458,6 +461,19 @@ class SensorArray:
         lo = np.maximum(offset - half[:, None, :], -self._half_column)
         hi = np.minimum(offset + half[:, None, :], self._half_column)
         cover = np.clip((hi - lo) / (2 * self._half_column), 0.0, 1.0)
+        # Only the poles some column of some cone covers cost anything further.
+        seen = np.flatnonzero(cover.any(axis=(0, 1)))
+        if not len(seen):
+            return None
+        cyl, reflect, r = cyl[seen], reflect[seen], r[seen]
+        dist, half, offset, lo, hi, cover = (
+            dist[:, seen],
+            half[:, seen],
+            offset[..., seen],
+            lo[..., seen],
+            hi[..., seen],
+            cover[..., seen],
+        )
         # The middle of the visible sliver, as an angle from the pole's bearing.
         mid = np.clip((lo + hi) / 2 - offset, -half[:, None, :], half[:, None, :])
         side = dist[:, None, :] * np.sin(mid)
