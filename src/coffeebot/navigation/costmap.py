@@ -2,14 +2,15 @@
 
 *Static layer*: the floor plan's walls, known in advance. *Obstacle layer*: a rolling grid
 around the robot, marked and cleared from the time-of-flight readings the way sonar costmaps
-are: a VL53L1X reading is the signal-weighted mean of what its cone sees, so the nearest thing
-is at most that far and may be anywhere across the cone: a reading marks the whole arc
+are: a VL53L1X reading is the signal-weighted mean of what its cone sees, so the nearest
+thing is at most that far and may be anywhere across the cone: a reading marks the whole arc
 of the cone at that range as occupied and clears the cone in front of it (nearer, there is
-nothing the cone would have weighed more; a thin leg in front of a wall can still hide in the
-blend, which the collision rules, not the planner, answer for). Clearing uses the cone narrowed on each side by the heading's possible error:
-off by a few degrees (while turning, above all), the edge of the cone as placed would sweep
-cells the sensor did not look at. A reading the plan's walls explain (some ray of the cone,
-widened by ``wall_heading_tolerance_deg`` for the pose's heading error, meets a wall within
+nothing the cone would have weighed more; a thin leg in front of a wall can still hide in
+the blend, which the collision rules, not the planner, answer for). Clearing uses the cone
+narrowed on each side by the heading's possible error: off by a few degrees (while turning,
+above all), the edge of the cone as placed would sweep cells the sensor did not look at. A
+reading the plan's walls explain (some ray of the cone, widened by
+``wall_heading_tolerance_deg`` for the pose's heading error, meets a wall within
 ``wall_margin_mm`` of the range) belongs to the static layer and marks nothing. Marks the
 robot does not see again expire after ``obstacle_memory_s``.
 

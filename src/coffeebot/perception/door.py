@@ -7,19 +7,19 @@ door spans ``door_width / (speed / scan_rate)`` readings.
 
 Beyond the seed: every reading is stored with where its ray met the wall along the hallway
 (from the pose at the time), so a detection is turned into a position. The seed's rule finds
-the rising edge (the split of the window with the largest step); the same rule mirrored finds
-the falling edge where the wall comes back, and the door's centre is the midpoint of the two.
-A cone blurs both edges by the same amount (a signal-weighted reading ramps from the wall to
-the recess as the edge crosses the cone's footprint, ~210 mm at 890 mm for a 27 degree cone,
-and the near wall weighs more than the deeper recess), so the midpoint is free of that bias
-whatever the cone's true ranging behaviour; a single edge would need the footprint
-correction, which is only as good as the ranging model. The price is a later event: the door is reported once
-the sensor has passed it. If the wall does not come back within ``max_feature_mm`` (a wide
-opening, a missed edge), the near edge alone is used with the footprint correction and the
-plan's width. The centre is matched to the floor plan's doors and openings on that side,
-which names the room and tells how far the robot's along-hallway position is off. A much
-larger step than a recess is an opening or an open door. Detections of the same door by the
-second sensor on the side are merged.
+the rising edge (the split of the window with the largest step); the same rule mirrored
+finds the falling edge where the wall comes back, and the door's centre is the midpoint of
+the two. A cone blurs both edges by the same amount (a signal-weighted reading ramps from
+the wall to the recess as the edge crosses the cone's footprint, ~210 mm at 890 mm for a 27
+degree cone, and the near wall weighs more than the deeper recess), so the midpoint is free
+of that bias whatever the cone's true ranging behaviour; a single edge would need the
+footprint correction, which is only as good as the ranging model. The price is a later
+event: the door is reported once the sensor has passed it. If the wall does not come back
+within ``max_feature_mm`` (a wide opening, a missed edge), the near edge alone is used with
+the footprint correction and the plan's width. The centre is matched to the floor plan's
+doors and openings on that side, which names the room and tells how far the robot's along-
+hallway position is off. A much larger step than a recess is an opening or an open door.
+Detections of the same door by the second sensor on the side are merged.
 """
 
 from __future__ import annotations
