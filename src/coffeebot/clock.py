@@ -8,7 +8,10 @@ and tests can reason about time without racing the machine.
 from __future__ import annotations
 
 import asyncio
+import contextlib
+import threading
 import time
+from collections.abc import Iterator
 from typing import Protocol
 
 
@@ -49,24 +52,49 @@ class ScaledClock:
         self.speed = speed
         # One tuple, replaced whole: driver threads read it while the loop changes the rate.
         self._segment = (start, time.monotonic(), speed)
+        self._lock = threading.Lock()
+        self._holds = 0
+        self._frozen: float | None = None
 
     @property
     def rate(self) -> float:
         return self._segment[2]
 
     def now(self) -> float:
+        frozen = self._frozen
+        if frozen is not None:
+            return frozen
         sim0, real0, rate = self._segment
         return sim0 + (time.monotonic() - real0) * rate
 
     def set_rate(self, rate: float) -> None:
         """Run at ``rate`` x real time from now on (clamped to ``(0, speed]``)."""
-        real = time.monotonic()
-        sim0, real0, old = self._segment
-        self._segment = (sim0 + (real - real0) * old, real, min(max(rate, 1e-3), self.speed))
+        with self._lock:
+            self._segment = (self.now(), time.monotonic(), min(max(rate, 1e-3), self.speed))
+
+    @contextlib.contextmanager
+    def hold(self) -> Iterator[None]:
+        """Simulated time stands still inside: the simulated world's own computing (casting
+        the sensors' cones, stepping the physics) takes no simulated time, as physics does
+        not, so a busy machine makes a run slower, not different. Threads may hold at once;
+        time moves on when the last lets go."""
+        with self._lock:
+            if self._holds == 0:
+                self._frozen = self.now()
+            self._holds += 1
+        try:
+            yield
+        finally:
+            with self._lock:
+                self._holds -= 1
+                if self._holds == 0 and self._frozen is not None:
+                    self._segment = (self._frozen, time.monotonic(), self.rate)
+                    self._frozen = None
 
     def restart(self, start: float) -> None:
         """Read ``start`` from this moment on; replay uses it to line up with a recording."""
-        self._segment = (start, time.monotonic(), self.rate)
+        with self._lock:
+            self._segment = (start, time.monotonic(), self.rate)
 
     async def sleep(self, seconds: float) -> None:
         await asyncio.sleep(max(0.0, seconds) / self.rate)

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import pytest
+
+import coffeebot.clock
 from coffeebot.clock import ScaledClock
 from coffeebot.sim.simulation import Pacer
 
@@ -41,3 +44,21 @@ def test_occasional_late_steps_do_not_slow_the_clock() -> None:
     for k in range(1000):  # one step in 20 is 50 ms late: a hiccup, not a trend
         pacer.observe(0.05 if k % 20 == 0 else 0.001)
     assert clock.rate == 4.0
+
+
+def test_simulated_time_stands_still_while_the_world_computes(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    real = [0.0]
+    monkeypatch.setattr(coffeebot.clock.time, "monotonic", lambda: real[0])
+    clock = ScaledClock(speed=100.0)
+    real[0] = 0.01
+    assert clock.now() == pytest.approx(1.0)
+    with clock.hold():
+        real[0] = 0.03  # two simulated seconds, were the clock running
+        assert clock.now() == pytest.approx(1.0)
+        with clock.hold():  # another thread's hold, overlapping
+            real[0] = 0.04
+        assert clock.now() == pytest.approx(1.0)
+    real[0] = 0.05
+    assert clock.now() == pytest.approx(2.0)  # running again, from where it stood

@@ -167,9 +167,14 @@ class Simulation:
     @contextlib.contextmanager
     def world_time(self) -> Iterator[World]:
         """The world under the lock, the calling thread's CPU time in it added to ``cpu_s``
-        (``thread_time`` counts no time spent waiting for the lock)."""
+        (``thread_time`` counts no time spent waiting for the lock). On a scaled clock,
+        simulated time stands still meanwhile: what the world costs to compute is not time
+        the robot has (``ScaledClock.hold``)."""
+        hold: contextlib.AbstractContextManager[None] = (
+            self.clock.hold() if isinstance(self.clock, ScaledClock) else contextlib.nullcontext()
+        )
         start = time.thread_time()
-        with self.lock:
+        with self.lock, hold:
             try:
                 yield self.world
             finally:

@@ -1,5 +1,5 @@
-"""Surfaces as flat numpy arrays, and the footprint query on them (the sensors' optics are in
-``tof.py``).
+"""Surfaces as flat numpy arrays, and the two vectorised queries on them: lines of sight and
+footprints (how the sensors range is ``tof.py``).
 
 Everything a sensor can see or the robot can hit is a vertical surface with a height range:
 a straight segment (walls, door leaves, box sides) or a vertical cylinder (poles, legs, bars).
@@ -17,6 +17,8 @@ import numpy as np
 
 from coffeebot.floorplan import segment_distances
 from coffeebot.sim.world.materials import DEFAULT
+
+_EPS = 1e-6
 
 
 @dataclass(frozen=True)
@@ -73,6 +75,57 @@ class Surfaces:
         c = self.cylinders
         cyl_d = np.hypot(c[:, 0] - x, c[:, 1] - y) - c[:, 2]
         return np.flatnonzero(seg_d <= radius), np.flatnonzero(cyl_d <= radius)
+
+
+def cast_rays(
+    segments: np.ndarray,
+    cylinders: np.ndarray,
+    origins: np.ndarray,
+    heights: np.ndarray,
+    azimuths: np.ndarray,
+    tan_el: np.ndarray,
+    cos_el: np.ndarray,
+) -> np.ndarray:
+    """Range to the nearest surface along every ray, ``inf`` where nothing is hit: the lines of
+    sight ground truth asks about (what a sensor could see), not how a sensor ranges.
+
+    ``origins`` (S, 2) and ``heights`` (S,) place S sensors; ray (s, a, e) leaves sensor s at
+    floor-frame azimuth ``azimuths[s, a]`` (rad) and elevation with tangent ``tan_el[s, e]``.
+    The horizontal intersection is shared by all elevations of one azimuth, so the work is
+    one (S, A, K) solve plus an (S, A, E, K) height test. Returns (S, A, E) ranges along the
+    3-D ray, in mm.
+    """
+    n_sensors, n_az = azimuths.shape
+    dx, dy = np.cos(azimuths)[:, :, None], np.sin(azimuths)[:, :, None]
+    ox, oy = origins[:, 0, None], origins[:, 1, None]
+    parts: list[np.ndarray] = []
+    with np.errstate(divide="ignore", invalid="ignore"):
+        if len(segments):
+            ex = segments[:, 2] - segments[:, 0]
+            ey = segments[:, 3] - segments[:, 1]
+            wx = (segments[:, 0] - ox)[:, None, :]
+            wy = (segments[:, 1] - oy)[:, None, :]
+            denom = dx * ey - dy * ex
+            t = (wx * ey - wy * ex) / denom
+            u = (wx * dy - wy * dx) / denom
+            parts.append(np.where((t > _EPS) & (u >= 0.0) & (u <= 1.0), t, np.inf))
+        if len(cylinders):
+            wx = (ox - cylinders[:, 0])[:, None, :]
+            wy = (oy - cylinders[:, 1])[:, None, :]
+            b = dx * wx + dy * wy
+            c = wx * wx + wy * wy - cylinders[:, 2] ** 2
+            disc = b * b - c
+            t = -b - np.sqrt(np.maximum(disc, 0.0))
+            parts.append(np.where((disc >= 0.0) & (c > 0.0) & (t > _EPS), t, np.inf))
+        if not parts:
+            return np.full((n_sensors, n_az, tan_el.shape[1]), np.inf)
+        t_h = np.concatenate(parts, axis=-1)  # (S, A, K) horizontal distance
+        z_bottom = np.concatenate([segments[:, 4], cylinders[:, 3]])
+        z_top = np.concatenate([segments[:, 5], cylinders[:, 4]])
+        z = heights[:, None, None, None] + t_h[:, :, None, :] * tan_el[:, None, :, None]
+        hit = (z >= z_bottom) & (z <= z_top)
+        nearest = np.where(hit, t_h[:, :, None, :], np.inf).min(axis=-1)
+    return nearest / cos_el[:, None, :]
 
 
 @dataclass(frozen=True)
