@@ -154,5 +154,15 @@ def svg(cov: Coverage, scale: float = 0.2, body_length_mm: float | None = None) 
         f'<rect x="{bx0:.1f}" y="{by0:.1f}" width="{bw:.1f}" height="{length * scale:.1f}" '
         'fill="none" stroke="#d9534f" stroke-width="2"/>'
     )
+    # The corridor the body sweeps driving ahead, dashed.
+    for edge in (bx0, bx0 + bw):
+        parts.append(
+            f'<line x1="{edge:.1f}" y1="0" x2="{edge:.1f}" y2="{by0:.1f}" stroke="#d9534f" '
+            'stroke-width="1" stroke-dasharray="4 4"/>'
+        )
+    parts.append(
+        '<text x="6" y="16" font-family="sans-serif" font-size="12" fill="#fff">'
+        "dark: no cone; green: one; light: several; red: body and its corridor</text>"
+    )
     parts.append("</svg>")
     return "\n".join(parts)
