@@ -151,6 +151,9 @@ class MotionModule(Module):
                 )
 
     def gate(self, ctx: ModuleContext) -> Gate:
+        """The safety gate from the freshest state on the board: made once per command."""
+        if self._stopping:
+            return Gate(0.0, "shutting down")
         estop = ctx.board.latest(ESTOP)
         gate = safety_gate(
             ctx.board.latest(COLLISION),
@@ -169,15 +172,12 @@ class MotionModule(Module):
             return Gate(0.0, "no fresh pose")
         return gate
 
-    def control(self, ctx: ModuleContext, dt: float) -> None:
-        """One period: plan, gate, publish the command and the status."""
+    def control(self, ctx: ModuleContext, dt: float, gate: Gate) -> None:
+        """One period under ``gate``: plan, publish the command and the status."""
         now = ctx.clock.now()
-        gate = self.gate(ctx)
         instruction = ctx.board.latest(MOVE_INSTRUCTION)
         ins = None if instruction is None else instruction.msg
         state = ctx.board.latest(CURRENT_STATE)
-        if self._stopping:
-            gate = Gate(0.0, "shutting down")
         if gate.stop and gate.may_rotate and state is not None:
             # Held by something ahead, but turning on the spot is allowed: the turn the
             # controller wants (into a door, away from a jamb, round a box) may clear it.
@@ -236,8 +236,9 @@ class MotionModule(Module):
             with contextlib.suppress(TimeoutError):
                 await ctx.board.next(COLLISION, timeout=self.cfg.period_s)
             now = ctx.clock.now()
-            if now - last >= self.cfg.period_s or self.gate(ctx).stop:
-                self.control(ctx, max(0.0, now - last))
+            gate = self.gate(ctx)
+            if now - last >= self.cfg.period_s or gate.stop:
+                self.control(ctx, max(0.0, now - last), gate)
                 last = now
 
     async def shutdown(self) -> None:
