@@ -38,8 +38,10 @@ from coffeebot.messages import (
 )
 from coffeebot.modules.base import Module, ModuleContext
 from coffeebot.modules.door import DoorModule
-from coffeebot.runtime import Runtime, build_sim, serve
-from coffeebot.sim.simulation import SimSetup
+from coffeebot.runtime.assemble import Runtime
+from coffeebot.runtime.service import serve
+from coffeebot.runtime.sim import build_sim
+from coffeebot.sim.simulation import SimSetup, Simulation
 from coffeebot.sim.world.trace import hallway_pose, lane_wheel_speeds
 from manual_clock import ManualClock
 from traffic import play_through
@@ -72,10 +74,9 @@ class LaneDriver(Module):
     name = "test-driver"
     outputs = (MOTOR_COMMAND,)
 
-    def __init__(self, runtime: Runtime) -> None:
-        assert runtime.sim is not None
+    def __init__(self, runtime: Runtime, sim: Simulation) -> None:
         self.runtime = runtime
-        self.sim = runtime.sim
+        self.sim = sim
 
     async def run(self, ctx: ModuleContext) -> None:
         floor = PLAN.floor(2)
@@ -105,7 +106,11 @@ class LivePass:
 async def record_pass(path: Path) -> LivePass:
     floor = PLAN.floor(2)
     setup = SimSetup(floor=2, pose=hallway_pose(floor, START_S_MM, LANE_MM), seed=3, speed=SPEED)
-    async with build_sim(CONFIG, PLAN, setup, lambda rt: [LaneDriver(rt)], web=False) as runtime:
+
+    def drive(runtime: Runtime, sim: Simulation) -> list[Module]:
+        return [LaneDriver(runtime, sim)]
+
+    async with build_sim(CONFIG, PLAN, setup, drive, web=False) as (runtime, _):
         board = runtime.board
         async with Recorder(board, path, metadata={"robot": CONFIG.name}) as recorder:
             await serve(runtime)

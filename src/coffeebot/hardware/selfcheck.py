@@ -1,20 +1,18 @@
-"""``coffeebot check-hardware``: probe every device once, the first thing to run on a newly
-wired robot. Runs the same drivers as the daemon, against the real buses or the simulated
-ones, and reports one row per part so a wiring fault names its place."""
+"""Probe every device once: ``coffeebot check-hardware``, the first thing to run on a newly
+wired robot, and the daemon's start-up self-check. Runs the same drivers as the daemon,
+against whatever buses it is given, and reports one result per part so a wiring fault
+names its place."""
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
-import json
-import os
-import time
-from collections.abc import Awaitable, Callable, Iterator
-from dataclasses import asdict, dataclass
+from collections.abc import Awaitable, Callable
+from dataclasses import dataclass
 
 from coffeebot.config import RobotConfig
 from coffeebot.hardware.dwm1001 import Dwm1001, parse_lec
-from coffeebot.hardware.i2c import I2CBus, open_i2c_bus
+from coffeebot.hardware.i2c import I2CBus
 from coffeebot.hardware.motor import MotorController
 from coffeebot.hardware.serial_port import SerialPort, open_port
 from coffeebot.hardware.tca9548a import TCA9548A
@@ -25,8 +23,6 @@ PORT_TIMEOUT_S = 0.2
 TOF_SAMPLES = 5
 WORKING = frozenset({ReadingStatus.VALID, ReadingStatus.OUT_OF_BOUNDS})
 """A distance, or nothing in range (an open door, a long hallway): the sensor works."""
-FAULT_ENV = "COFFEEBOT_SIM_FAULT"
-FAULTS = ("mux-nack", "tof<N>-nack", "tof<N>-status", "i2c-timeout", "uwb-unplug", "motor-unplug")
 
 
 @dataclass(frozen=True)
@@ -162,80 +158,3 @@ def service_check(
         return await asyncio.to_thread(probe)
 
     return check
-
-
-@contextlib.contextmanager
-def simulated_robot(config: RobotConfig, fault: str | None) -> Iterator[tuple[RobotConfig, I2CBus]]:
-    """The simulated buses wired as ``config`` says, with one named fault injected."""
-    from coffeebot.sim.dwm1001 import SimDwm1001
-    from coffeebot.sim.i2c import make_tof_hardware
-    from coffeebot.sim.motor_controller import SimMotorController
-
-    hw = make_tof_hardware(
-        lambda ch: 800.0 + 10 * ch,
-        [s.channel for s in config.tof.sensors],
-        mux_address=config.i2c.mux_address,
-    )
-    with SimDwm1001(lambda: (2000.0, 850.0, 0.0)) as dwm, SimMotorController() as motor:
-        sensor_by_id = {s.id: hw.sensors[s.channel] for s in config.tof.sensors}
-        match (fault or "").split("-"):
-            case [""]:
-                pass
-            case ["mux", "nack"]:
-                hw.mux.nack = True
-            case ["i2c", "timeout"]:
-                hw.bus.timeout = True
-            case [tof, kind] if (
-                tof.startswith("tof") and tof[3:].isdigit() and kind in ("nack", "status")
-            ):
-                sim = sensor_by_id[int(tof[3:])]
-                if kind == "nack":
-                    sim.nack = True
-                else:
-                    sim.forced_status = 4
-            case ["uwb", "unplug"]:
-                dwm.unplug()
-            case ["motor", "unplug"]:
-                motor.unplug()
-            case _:
-                raise ValueError(f"unknown fault {fault!r}; choose one of {', '.join(FAULTS)}")
-        sim_config = config.model_copy(
-            update={
-                "uwb": config.uwb.model_copy(update={"port": dwm.port}),
-                "motor": config.motor.model_copy(update={"port": motor.port}),
-            }
-        )
-        yield sim_config, hw.bus
-
-
-def format_table(results: list[CheckResult]) -> str:
-    rows = [("component", "channel/port", "result", "detail")] + [
-        (r.component, r.where, "ok" if r.ok else "FAIL", r.detail) for r in results
-    ]
-    widths = [max(len(row[i]) for row in rows) for i in range(3)]
-    return "\n".join(
-        "  ".join(cell.ljust(w) for cell, w in zip(row[:3], widths, strict=True)) + "  " + row[3]
-        for row in rows
-    )
-
-
-def main(config: RobotConfig, *, sim: bool, as_json: bool, fault: str | None = None) -> int:
-    """Run every probe, print the table (or JSON); 0 only if every part passed."""
-    started = time.monotonic()
-    fault = fault or os.environ.get(FAULT_ENV)
-    if sim:
-        with simulated_robot(config, fault) as (sim_config, bus):
-            results = run_checks(sim_config, bus)
-    else:
-        bus = open_i2c_bus(config.i2c.bus)
-        try:
-            results = run_checks(config, bus)
-        finally:
-            bus.close()
-    ok = all(r.ok for r in results)
-    if as_json:
-        print(json.dumps({"ok": ok, "results": [asdict(r) for r in results]}, indent=2))
-    else:
-        print(format_table(results))
-        print(f"\n{'all parts ok' if ok else 'FAILED'} ({time.monotonic() - started:.1f} s)")
-    return 0 if ok else 1
