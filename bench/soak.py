@@ -35,13 +35,13 @@ from coffeebot.floorplan import load_floorplan
 from coffeebot.logs import setup_logging
 from coffeebot.messages import OrderStatus
 from coffeebot.modules.base import Module, ModuleContext
-from coffeebot.modules.web import WebModule
 from coffeebot.runtime.assemble import Runtime
 from coffeebot.runtime.service import serve
 from coffeebot.runtime.sim import build_sim
 from coffeebot.scenario.driver import ScenarioModule
 from coffeebot.scenario.spec import OrderSpec, Scenario, StartPose
 from coffeebot.sim.simulation import Simulation
+from coffeebot.web import WebModule
 
 ROOT = Path(__file__).resolve().parents[1]
 BOARD = ROOT / "boards" / "coffeebot-v1.toml"

@@ -41,13 +41,13 @@ from coffeebot.clock import ScaledClock
 from coffeebot.config import load_robot_config
 from coffeebot.messages import COLLISION, ORDER_UPDATE, RANGE_SCAN, OrderStatus
 from coffeebot.modules.base import Module, ModuleContext
-from coffeebot.modules.web import WebModule
 from coffeebot.runtime.assemble import Runtime
 from coffeebot.runtime.service import serve
 from coffeebot.runtime.sim import build_sim
 from coffeebot.scenario.driver import ScenarioModule
 from coffeebot.scenario.spec import Staff, load_scenario
 from coffeebot.sim.simulation import Simulation
+from coffeebot.web import WebModule
 
 ROOT = Path(__file__).resolve().parents[1]
 BOARD = ROOT / "boards" / "coffeebot-v1.toml"

@@ -19,11 +19,11 @@ import pytest
 
 from coffeebot.config import load_robot_config
 from coffeebot.floorplan import load_floorplan
-from coffeebot.modules.web import WebModule
 from coffeebot.runtime.assemble import Runtime
 from coffeebot.runtime.service import serve
 from coffeebot.runtime.sim import build_sim
 from coffeebot.sim.simulation import demo_setup
+from coffeebot.web import WebModule
 
 from .test_browser import CHROMIUM, CHROMIUM_ARGS, REPO, SCREENSHOTS
 

@@ -18,7 +18,8 @@ from coffeebot.messages import (
     OrderStatus,
     OrderUpdate,
 )
-from coffeebot.modules.orders import OrderError, OrdersModule, OrdersUnavailable
+from coffeebot.modules.orders import OrdersModule
+from coffeebot.orders import OrderError, OrdersUnavailable
 from coffeebot.store import OrderStore
 from logged import events
 

@@ -3,12 +3,14 @@
 from coffeebot.board.board import Board, BoardError, BoardOverflowError, Subscription
 from coffeebot.board.stats import BoardSnapshot, SubscriberStats, TopicStats
 from coffeebot.board.topic import Delivery, Envelope, Topic
+from coffeebot.board.view import BoardView
 
 __all__ = [
     "Board",
     "BoardError",
     "BoardOverflowError",
     "BoardSnapshot",
+    "BoardView",
     "Delivery",
     "Envelope",
     "SubscriberStats",

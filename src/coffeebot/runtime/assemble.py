@@ -130,7 +130,14 @@ def assemble(
     if web:
         modules.append(
             web_module(
-                config, plan, board, orders, modules, lambda: runtime.daemon.health(), true_pose
+                config,
+                plan,
+                board,
+                orders,
+                # The daemon is made below, from every module.
+                modules=lambda: runtime.daemon.modules,
+                health=lambda: runtime.daemon.health(),
+                true_pose=true_pose,
             )
         )
     if extra is not None:

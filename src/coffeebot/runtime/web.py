@@ -13,9 +13,8 @@ from coffeebot.floorplan import FloorPlan
 from coffeebot.floorplan_svg import render_svg
 from coffeebot.messages import CURRENT_STATE, Health
 from coffeebot.modules.base import Module
-from coffeebot.modules.orders import OrdersModule
-from coffeebot.modules.web import WebModule
-from coffeebot.web import RoomChoice, WebDeps
+from coffeebot.orders import Orders
+from coffeebot.web import RoomChoice, WebDeps, WebModule
 from coffeebot.web.livemap import MapPose
 
 TruePose = Callable[[], MapPose]
@@ -65,8 +64,8 @@ def web_module(
     config: RobotConfig,
     plan: FloorPlan,
     board: Board,
-    orders: OrdersModule,
-    modules: Sequence[Module],
+    orders: Orders,
+    modules: Callable[[], Sequence[Module]],
     health: Callable[[], Sequence[Health]],
     true_pose: TruePose | None = None,
 ) -> WebModule:
@@ -74,7 +73,6 @@ def web_module(
     return WebModule(
         WebDeps(
             board=board,
-            bus=board,
             orders=orders,
             rooms=office_choices(plan),
             config=config.web,

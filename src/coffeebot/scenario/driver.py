@@ -26,8 +26,8 @@ from coffeebot.messages import (
     SafetyState,
 )
 from coffeebot.modules.base import Module, ModuleContext
-from coffeebot.modules.orders import OrderError, OrdersModule
 from coffeebot.navigation.lifecycle import READY_FOR_CUP
+from coffeebot.orders import OrderError, Orders
 from coffeebot.scenario.report import (
     OrderOutcome,
     SafetyStopEntry,
@@ -92,7 +92,7 @@ class ScenarioModule(Module):
         plan: FloorPlan,
         config: RobotConfig,
         sim: Simulation,
-        orders: OrdersModule,
+        orders: Orders,
         finish: Callable[[str], None],
     ) -> None:
         self.scenario = scenario
