@@ -85,7 +85,13 @@ class Daemon:
         The health topic carries changes; a page opened later needs the current state.
         """
         return [
-            Health(module=s.module.name, status=s.status, restarts=s.restarts, detail=s.last_error)
+            Health(
+                module=s.module.name,
+                status=s.status,
+                restarts=s.restarts,
+                detail=s.last_error,
+                publishes=_published(s.module),
+            )
             for s in self.states.values()
         ]
 
@@ -97,6 +103,7 @@ class Daemon:
                 status=state.status,
                 restarts=state.restarts,
                 detail=detail,
+                publishes=_published(state.module),
             ),
         )
 
@@ -198,3 +205,7 @@ class Daemon:
                     await state.task
             state.status = HealthStatus.STOPPED
             self._report(state, "daemon stopped")
+
+
+def _published(module: Module) -> tuple[str, ...]:
+    return tuple(topic.name for topic in module.outputs)

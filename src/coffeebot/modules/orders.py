@@ -77,10 +77,18 @@ class OrdersModule(Module):
             raise OrdersUnavailable("the order queue is not running; try again shortly")
         return self._board
 
-    def _announce(self, order: Order, cause: str) -> None:
-        """Publish a stored change and log it: the one place every transition passes."""
+    def _announce(self, order: Order, cause: str, update: DeliveryUpdate | None = None) -> None:
+        """Publish a stored change and log it: the one place every transition passes;
+        ``update``: navigation's report the change came from."""
         self._require_board().publish(
-            ORDER_UPDATE, OrderUpdate(order_id=order.id, status=order.status, detail=order.detail)
+            ORDER_UPDATE,
+            OrderUpdate(
+                order_id=order.id,
+                status=order.status,
+                detail=order.detail,
+                ready_for_cup=update is not None and update.ready_for_cup,
+                problem=None if update is None else update.problem,
+            ),
         )
         log_event(
             log,
@@ -176,7 +184,7 @@ class OrdersModule(Module):
                 extra={"order": update.order_id, "status": update.status.value},
             )
             return
-        self._announce(order, update.detail or "reported by navigation")
+        self._announce(order, update.detail or "reported by navigation", update)
         if order.status.final:
             self._current = None
             await self._dispatch_next()

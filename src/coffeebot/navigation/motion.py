@@ -18,7 +18,13 @@ import numpy as np
 
 from coffeebot.config import MotionConfig
 from coffeebot.floorplan import Floor, FloorPlan
-from coffeebot.messages import MotionState, MotionStatus, MoveInstruction, PoseEstimate
+from coffeebot.messages import (
+    MotionState,
+    MotionStatus,
+    MoveInstruction,
+    PoseEstimate,
+    StopCause,
+)
 from coffeebot.navigation.control import (
     SpeedProfile,
     lane_heading_deg,
@@ -79,9 +85,12 @@ class MotionController:
         self.speed = 0.0
         self.yaw_rate = 0.0
 
-    def safety_status(self, instruction_id: int, now: float, reason: str) -> MotionStatus:
+    def safety_status(
+        self, instruction_id: int, now: float, reason: str, cause: StopCause | None
+    ) -> MotionStatus:
         """The status while the safety gate holds the robot."""
-        return self._status(instruction_id, MotionState.SAFETY_STOP, now, None, reason)
+        status = self._status(instruction_id, MotionState.SAFETY_STOP, now, None, reason)
+        return status.model_copy(update={"stopped_by": cause})
 
     def _status(
         self,

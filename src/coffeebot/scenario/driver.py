@@ -23,10 +23,10 @@ from coffeebot.messages import (
     ORDER_UPDATE,
     OperatorEvent,
     OrderStatus,
+    OrderUpdate,
     SafetyState,
 )
 from coffeebot.modules.base import Module, ModuleContext
-from coffeebot.navigation.lifecycle import READY_FOR_CUP
 from coffeebot.orders import OrderError, Orders
 from coffeebot.scenario.report import (
     OrderOutcome,
@@ -133,7 +133,7 @@ class ScenarioModule(Module):
                 while pending and pending[0].spec.at_s <= t:
                     await self._place(pending.pop(0))
                 while (update := updates.get_nowait()) is not None:
-                    self._order_update(update.msg.order_id, update.msg.status, update.msg.detail)
+                    self._order_update(update.msg)
                 self._people(ctx, t)
                 self._odometer()
                 if t >= self.scenario.time_limit_s:
@@ -209,13 +209,14 @@ class ScenarioModule(Module):
             return
         track.id, track.status, track.placed_at_s = order.id, order.status.value, self.sim.t_s
 
-    def _order_update(self, order_id: str, status: OrderStatus, detail: str) -> None:
-        track = next((o for o in self.log.orders if o.id == order_id), None)
+    def _order_update(self, update: OrderUpdate) -> None:
+        track = next((o for o in self.log.orders if o.id == update.order_id), None)
         if track is None:
             return
-        track.status, track.detail = status.value, detail
+        status = update.status
+        track.status, track.detail = status.value, update.detail
         t = self.sim.t_s
-        if status is OrderStatus.PREPARING and detail == READY_FOR_CUP:
+        if update.ready_for_cup:
             track.ready_at_s = t
         if status is OrderStatus.ARRIVED:
             track.arrived_at_s = t
