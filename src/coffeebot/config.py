@@ -13,9 +13,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-
-class ConfigError(ValueError):
-    """A configuration or floor-plan file that cannot be used, with the reason."""
+from coffeebot.errors import ConfigError
 
 
 class Section(BaseModel):

@@ -10,12 +10,8 @@ from __future__ import annotations
 
 from typing import Protocol
 
+from coffeebot.errors import OrderError
 from coffeebot.store import NewOrder, Order
-
-
-class OrderError(Exception):
-    """An order request that cannot be carried out as asked (the order is in a state that
-    does not allow it)."""
 
 
 class OrderNotFound(OrderError):

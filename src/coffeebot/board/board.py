@@ -19,16 +19,13 @@ from pydantic import BaseModel
 from coffeebot.board.stats import BoardSnapshot, SubscriberStats, TopicStats
 from coffeebot.board.topic import Delivery, Envelope, Topic
 from coffeebot.clock import Clock, MonotonicClock
+from coffeebot.errors import BoardError
 
 log = logging.getLogger(__name__)
 
 M = TypeVar("M", bound=BaseModel)
 
 RATE_WINDOW_S = 5.0
-
-
-class BoardError(Exception):
-    """Misuse of the board: unknown topic, wrong message type, duplicate declaration."""
 
 
 class BoardOverflowError(BoardError):

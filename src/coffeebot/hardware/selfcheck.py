@@ -11,6 +11,7 @@ from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 
 from coffeebot.config import RobotConfig
+from coffeebot.errors import HardwareError
 from coffeebot.hardware.dwm1001 import Dwm1001, parse_lec
 from coffeebot.hardware.i2c import I2CBus
 from coffeebot.hardware.motor import MotorController
@@ -130,7 +131,7 @@ def run_checks(config: RobotConfig, bus: I2CBus, opener: Opener = open_port) -> 
     return [*check_tof(bus, config), check_uwb(config, opener), check_motor(config, opener)]
 
 
-class SelfCheckFailed(Exception):
+class SelfCheckFailed(HardwareError):
     """A part failed the check the daemon runs before the robot may move."""
 
 

@@ -22,6 +22,7 @@ from collections.abc import Callable
 
 from coffeebot.board import Subscription
 from coffeebot.config import RobotConfig
+from coffeebot.errors import DeliveryError
 from coffeebot.floorplan import FloorPlan
 from coffeebot.messages import (
     CURRENT_STATE,
@@ -56,7 +57,7 @@ PROGRESS_MM = 100.0
 something without getting on is as blocked as standing still."""
 
 
-class DeliveryAborted(Exception):
+class DeliveryAborted(DeliveryError):
     """The delivery cannot go on; the message is the reason the customer sees."""
 
     def __init__(self, reason: str, problem: DeliveryProblem) -> None:
