@@ -25,7 +25,7 @@ from coffeebot.config import ConfigError, RobotConfig, load_robot_config
 from coffeebot.daemon import Daemon
 from coffeebot.floorplan import FloorPlan, load_floorplan
 from coffeebot.floorplan_svg import add_render_arguments, render_command
-from coffeebot.hardware.i2c import open_i2c_bus
+from coffeebot.hardware.i2c import kernel_bus_hz, open_i2c_bus
 from coffeebot.hardware.selfcheck import CheckResult, SelfCheckFailed, run_checks
 from coffeebot.install import install_service
 from coffeebot.logs import setup_logging
@@ -143,7 +143,8 @@ def _sim_command(config: RobotConfig, args: argparse.Namespace) -> int:
 
 def format_table(results: list[CheckResult]) -> str:
     rows = [("component", "channel/port", "result", "detail")] + [
-        (r.component, r.where, "ok" if r.ok else "FAIL", r.detail) for r in results
+        (r.component, r.where, "FAIL" if not r.ok else "WARN" if r.warning else "ok", r.detail)
+        for r in results
     ]
     widths = [max(len(row[i]) for row in rows) for i in range(3)]
     return "\n".join(
@@ -163,7 +164,7 @@ def _check_hardware(config: RobotConfig, args: argparse.Namespace) -> int:
     else:
         bus = open_i2c_bus(config.i2c.bus)
         try:
-            results = run_checks(config, bus)
+            results = run_checks(config, bus, kernel_hz=kernel_bus_hz(config.i2c.bus))
         finally:
             bus.close()
     ok = all(r.ok for r in results)

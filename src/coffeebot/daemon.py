@@ -16,7 +16,6 @@ import logging
 import signal
 from collections import deque
 from collections.abc import Iterable
-from typing import Any
 
 from coffeebot.board import Board
 from coffeebot.clock import Clock
@@ -50,12 +49,10 @@ class Daemon:
         board: Board,
         modules: Iterable[Module],
         supervision: SupervisionConfig | None = None,
-        extras: dict[str, Any] | None = None,
     ) -> None:
         self.board = board
         self.clock: Clock = board.clock
         self.supervision = supervision or SupervisionConfig()
-        self.extras = extras or {}
         self.states: dict[str, ModuleState] = {}
         for module in modules:
             if module.name in self.states:
@@ -114,7 +111,6 @@ class Daemon:
             board=ModuleBoard(self.board, module),
             clock=self.clock,
             log=logging.getLogger(f"coffeebot.module.{module.name}"),
-            extras=self.extras,
         )
         backoff = cfg.restart_backoff_s
         while True:

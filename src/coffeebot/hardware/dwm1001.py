@@ -29,7 +29,6 @@ from coffeebot.hardware.errors import DeviceError
 from coffeebot.hardware.serial_port import LineReader, SerialPort
 from coffeebot.messages import AnchorRange, UwbFix
 
-BAUDRATE = 115200
 PROMPT = b"dwm> "
 ENTER_SHELL = b"\r\r"  # two Enters within one second leave TLV mode
 TLV_UNKNOWN_COMMAND = b"\x40\x01\x01"  # what TLV mode answers to text

@@ -99,6 +99,7 @@ def assemble(
     clock: Clock,
     open_i2c: Callable[[], I2CBus],
     store_path: Path,
+    kernel_hz: Callable[[], int | None] | None = None,
     start: PoseEstimate | None = None,
     before: Sequence[Module] = (),
     elevator: ElevatorInterface | None = None,
@@ -108,6 +109,7 @@ def assemble(
 ) -> Runtime:
     """Build the board and every module from ``config`` and ``plan``.
 
+    ``kernel_hz``: the I2C bus clock the kernel runs, for the self-check (a real bus only);
     ``before``: modules that start ahead of the drivers (the simulated world);
     ``elevator``: the building's elevator, if the robot can talk to it; ``true_pose``: a pose
     the live map draws beside the estimate (the simulator's truth); ``web``: serve the UI.
@@ -125,7 +127,7 @@ def assemble(
         board=board,
         store=store,
         orders=orders,
-        self_check=service_check(config, open_i2c),
+        self_check=service_check(config, open_i2c, kernel_hz),
     )
     if web:
         modules.append(

@@ -10,7 +10,7 @@ import functools
 from coffeebot.clock import MonotonicClock
 from coffeebot.config import RobotConfig
 from coffeebot.floorplan import FloorPlan
-from coffeebot.hardware.i2c import open_i2c_bus
+from coffeebot.hardware.i2c import kernel_bus_hz, open_i2c_bus
 from coffeebot.runtime.assemble import Runtime, assemble
 
 
@@ -20,5 +20,6 @@ def build_robot(config: RobotConfig, plan: FloorPlan) -> Runtime:
         plan,
         clock=MonotonicClock(),
         open_i2c=functools.partial(open_i2c_bus, config.i2c.bus),
+        kernel_hz=functools.partial(kernel_bus_hz, config.i2c.bus),
         store_path=config.store.path,
     )
