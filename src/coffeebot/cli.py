@@ -21,8 +21,9 @@ from pathlib import Path
 from coffeebot.board import Board
 from coffeebot.board.recording import Player, RecordingError, recording_info
 from coffeebot.clock import ScaledClock
-from coffeebot.config import ConfigError, RobotConfig, load_robot_config
+from coffeebot.config import RobotConfig, load_robot_config
 from coffeebot.daemon import Daemon
+from coffeebot.errors import ConfigError
 from coffeebot.floorplan import FloorPlan, load_floorplan
 from coffeebot.floorplan_svg import add_render_arguments, render_command
 from coffeebot.hardware.i2c import kernel_bus_hz, open_i2c_bus

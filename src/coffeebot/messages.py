@@ -9,7 +9,7 @@ from +x. Robot-frame quantities use x forward, y left, origin at the body centre
 from __future__ import annotations
 
 from enum import StrEnum
-from typing import Literal
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -422,7 +422,7 @@ MOTION_STATUS = Topic("motion/status", MotionStatus, Delivery.LATEST)
 ELEVATOR_REQUEST = Topic("elevator/request", ElevatorRequest, Delivery.RELIABLE)
 ELEVATOR_STATE = Topic("elevator/state", ElevatorState, Delivery.LATEST)
 
-ALL_TOPICS: tuple[Topic, ...] = (
+ALL_TOPICS: tuple[Topic[Any], ...] = (
     HEALTH,
     RANGE_SCAN,
     UWB_FIX,

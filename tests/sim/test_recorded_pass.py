@@ -68,8 +68,9 @@ DOOR_INPUTS = [RANGE_SCAN, CURRENT_STATE, ORDER_DISPATCH, MOVE_INSTRUCTION]
 
 
 class LaneDriver(Module):
-    """Drives down the hallway on ground truth (navigation and motion are not merged yet),
-    commanding the wheels through the motor topic, and ends the run at ``END_S_MM``."""
+    """Drives down the hallway on ground truth, so the pass depends on the door module alone
+    and not on navigation and motion, commanding the wheels through the motor topic, and ends
+    the run at ``END_S_MM``."""
 
     name = "test-driver"
     outputs = (MOTOR_COMMAND,)

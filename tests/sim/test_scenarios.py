@@ -12,7 +12,8 @@ from pathlib import Path
 import pytest
 
 from coffeebot.cli import main
-from coffeebot.config import ConfigError, load_robot_config
+from coffeebot.config import load_robot_config
+from coffeebot.errors import ConfigError
 from coffeebot.scenario.report import FinalPose, ScenarioReport
 from coffeebot.scenario.run import run_scenario
 from coffeebot.scenario.spec import load_scenario
@@ -57,7 +58,8 @@ async def test_short_scenario_reports_an_undelivered_order(tmp_path: Path) -> No
     assert report.scenario == "short"
     assert report.ended == "time limit"
     assert report.sim_time_s >= 3
-    # Placed through the orders module and dispatched; with no navigation it never leaves.
+    # Placed through the orders module and dispatched; within 3 s no cup is loaded, so it
+    # never leaves.
     [order] = report.orders
     assert order.room == "205" and order.id
     assert order.status == "preparing"

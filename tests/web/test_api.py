@@ -10,6 +10,7 @@ import pytest
 from aiohttp.test_utils import TestClient
 
 from coffeebot.board import Board
+from coffeebot.errors import OrderError
 from coffeebot.messages import (
     DELIVERY_STATUS,
     ESTOP,
@@ -22,7 +23,7 @@ from coffeebot.messages import (
     ReadingStatus,
 )
 from coffeebot.modules.orders import OrdersModule
-from coffeebot.orders import OrderError, OrderNotFound, OrdersUnavailable
+from coffeebot.orders import OrderNotFound, OrdersUnavailable
 from coffeebot.store import NewOrder, Order
 from coffeebot.web import create_app
 

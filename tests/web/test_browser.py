@@ -2,7 +2,7 @@
 
 The daemon runs the orders and web modules on a real port; a small stand-in robot moves
 along the hallway publishing scans, and the tests play navigation by publishing delivery
-updates, as the simulated robot will once it is merged.
+updates (``test_browser_sim.py`` runs the whole simulated robot instead).
 """
 
 from __future__ import annotations

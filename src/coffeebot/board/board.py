@@ -236,11 +236,10 @@ class Board:
         try:
             if timeout is None:
                 return await waiter
-            timeout_task = asyncio.ensure_future(self.clock.sleep(timeout))
+            timeout_task: asyncio.Future[None] = asyncio.ensure_future(self.clock.sleep(timeout))
+            racing: set[asyncio.Future[Any]] = {waiter, timeout_task}
             try:
-                done, _ = await asyncio.wait(
-                    {waiter, timeout_task}, return_when=asyncio.FIRST_COMPLETED
-                )
+                done, _ = await asyncio.wait(racing, return_when=asyncio.FIRST_COMPLETED)
             finally:
                 timeout_task.cancel()
             if waiter in done:

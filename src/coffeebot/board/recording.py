@@ -16,7 +16,7 @@ import logging
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Generator, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, BinaryIO
@@ -183,7 +183,7 @@ class Recorder:
                 if closing:
                     break
             if self.error is None:
-                writer.finish()
+                writer.finish()  # type: ignore[no-untyped-call]  # mcap's Writer is untyped
         except Exception as exc:
             self._fail(exc)
         finally:
@@ -252,7 +252,7 @@ class RecordedMessage:
 
 def read_recording(
     path: str | Path, topics: Iterable[Topic[Any]], only: Iterable[str] | None = None
-) -> Iterator[RecordedMessage]:
+) -> Generator[RecordedMessage]:
     """Messages in time order, each validated into the model of its topic in ``topics``.
 
     Channels whose topic is not in ``topics`` are skipped (a recording may be older or newer

@@ -83,17 +83,17 @@ def parse_lec(line: str) -> LecReport:
         raise ValueError(f"DIST,{count} with only {len(fields)} fields")
     anchors = []
     for i in range(count):
-        tag, anchor_id, x, y, z, d = fields[2 + 6 * i : 8 + 6 * i]
+        tag, anchor_id, ax, ay, az, ad = fields[2 + 6 * i : 8 + 6 * i]
         if tag != f"AN{i}" or len(anchor_id) != 4:
             raise ValueError(f"anchor block {i} malformed: {tag},{anchor_id}")
         int(anchor_id, 16)
         anchors.append(
             AnchorRange(
                 anchor_id=anchor_id,
-                x_mm=_millimetres(x),
-                y_mm=_millimetres(y),
-                z_mm=_millimetres(z),
-                distance_mm=_millimetres(d),
+                x_mm=_millimetres(ax),
+                y_mm=_millimetres(ay),
+                z_mm=_millimetres(az),
+                distance_mm=_millimetres(ad),
             )
         )
     rest = fields[anchors_end:]

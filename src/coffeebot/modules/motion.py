@@ -135,8 +135,8 @@ class MotionModule(Module):
         board.publish(MOTOR_COMMAND, MotorCommand(left_mm_s=0.0, right_mm_s=0.0, reason=reason))
 
     async def _watch_health(self, ctx: ModuleContext) -> None:
-        with ctx.board.subscribe(HEALTH) as health:
-            async for envelope in health:
+        with ctx.board.subscribe(HEALTH) as reports:
+            async for envelope in reports:
                 health = envelope.msg
                 if COLLISION.name in health.publishes and health.component is None:
                     self.collision_health = health.status

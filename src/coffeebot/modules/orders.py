@@ -23,6 +23,7 @@ import asyncio
 import logging
 
 from coffeebot.board import Envelope
+from coffeebot.errors import OrderError
 from coffeebot.logs import Event, log_event
 from coffeebot.messages import (
     DELIVERY_STATUS,
@@ -34,7 +35,7 @@ from coffeebot.messages import (
     OrderUpdate,
 )
 from coffeebot.modules.base import Module, ModuleBoard, ModuleContext
-from coffeebot.orders import OrderError, OrderNotFound, OrdersUnavailable
+from coffeebot.orders import OrderNotFound, OrdersUnavailable
 from coffeebot.store import IN_FLIGHT, NewOrder, Order, OrderStore
 
 log = logging.getLogger(__name__)

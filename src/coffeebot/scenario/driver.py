@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from pydantic import ValidationError
 
 from coffeebot.config import RobotConfig
+from coffeebot.errors import OrderError
 from coffeebot.floorplan import FloorPlan
 from coffeebot.messages import (
     COLLISION,
@@ -27,7 +28,7 @@ from coffeebot.messages import (
     SafetyState,
 )
 from coffeebot.modules.base import Module, ModuleContext
-from coffeebot.orders import OrderError, Orders
+from coffeebot.orders import Orders
 from coffeebot.scenario.report import (
     OrderOutcome,
     SafetyStopEntry,

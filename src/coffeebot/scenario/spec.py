@@ -11,7 +11,8 @@ from pathlib import Path
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from coffeebot.config import ConfigError, RobotConfig, describe_validation_error, read_toml
+from coffeebot.config import RobotConfig, describe_validation_error, read_toml
+from coffeebot.errors import ConfigError
 from coffeebot.floorplan import FloorPlan, load_floorplan
 from coffeebot.sim.faults import Fault
 from coffeebot.sim.simulation import SimSetup

@@ -5,6 +5,7 @@ from __future__ import annotations
 from aiohttp import web
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from coffeebot.errors import OrderError
 from coffeebot.messages import (
     ESTOP,
     OPERATOR_EVENT,
@@ -12,7 +13,6 @@ from coffeebot.messages import (
     OperatorEvent,
     OrderStatus,
 )
-from coffeebot.orders import OrderError
 from coffeebot.store import NewOrder, Order, OrderRules
 from coffeebot.web.context import (
     BUS,

@@ -16,7 +16,8 @@ from pathlib import Path
 
 from aiohttp import web
 
-from coffeebot.orders import OrderError, OrderNotFound, OrdersUnavailable
+from coffeebot.errors import OrderError
+from coffeebot.orders import OrderNotFound, OrdersUnavailable
 from coffeebot.web import api, pages
 from coffeebot.web.context import (
     BUS,

@@ -116,7 +116,7 @@ def map_frame(
     shapes: list[Shape] = []
     for topic, layer in LAYERS.items():
         try:
-            envelope = board.latest(topic)
+            envelope: Envelope[Any] | None = board.latest(topic)
         except BoardError:  # the topic is not declared on this board
             continue
         if envelope is not None:

@@ -315,5 +315,5 @@ class World:
             for d, a in used
         ]
         x, y, z = truth + model.position_sigma_mm * rng.standard_normal(3)
-        quality = round(sum(r.quality for r in ranges) / len(ranges))
+        quality = round(sum(r.quality or 0 for r in ranges) / len(ranges))
         return UwbFix(x_mm=x, y_mm=y, z_mm=z, quality=quality, anchors=ranges)
