@@ -160,7 +160,13 @@ def _check_hardware(config: RobotConfig, args: argparse.Namespace) -> int:
     if args.sim:
         from coffeebot.sim.selfcheck import FAULT_ENV, simulated_robot
 
-        with simulated_robot(config, args.fault or os.environ.get(FAULT_ENV)) as (sim_config, bus):
+        with contextlib.ExitStack() as devices:
+            try:
+                robot = simulated_robot(config, args.fault or os.environ.get(FAULT_ENV))
+                sim_config, bus = devices.enter_context(robot)
+            except ValueError as exc:  # an unknown fault
+                print(f"coffeebot: {exc}", file=sys.stderr)
+                return 2
             results = run_checks(sim_config, bus)
     else:
         bus = open_i2c_bus(config.i2c.bus)

@@ -43,6 +43,12 @@ def test_mux_fault_fails_the_mux(capsys: pytest.CaptureFixture[str]) -> None:
     assert "0x70 selecting no channel" in capsys.readouterr().out
 
 
+def test_an_unknown_fault_is_a_one_line_error(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["check-hardware", "--sim", "--fault", "tof9-melt"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("coffeebot: unknown fault 'tof9-melt'") and "Traceback" not in err
+
+
 def fake_sysfs(root: Path, bus: int, hz: int) -> Path:
     node = root / "class" / "i2c-adapter" / f"i2c-{bus}" / "of_node"
     node.mkdir(parents=True)
