@@ -69,7 +69,9 @@ def to_scan(readings: list[ToFReading] | tuple[ToFReading, ...], t: float) -> Ra
     )
 
 
-def known_pose(pose: Pose, floor: int, sigma_mm: float, sigma_deg: float, speed: float = 0.0):
+def known_pose(
+    pose: Pose, floor: int, sigma_mm: float, sigma_deg: float, speed: float = 0.0
+) -> PoseEstimate:
     return PoseEstimate(
         x_mm=pose.x_mm,
         y_mm=pose.y_mm,
@@ -112,7 +114,9 @@ def _seed_rule_angle(world: World, config: RobotConfig, side: str) -> float | No
     return pair_angle_deg(delta, pair.baseline_mm, 0.0)
 
 
-def bench_angle(plan: FloorPlan, config: RobotConfig, spec: RobotSpec, cases: int) -> dict:
+def bench_angle(
+    plan: FloorPlan, config: RobotConfig, spec: RobotSpec, cases: int
+) -> dict[str, Any]:
     floor = plan.floor(2)
     world = World(plan, spec, floor=2, pose=hallway_pose(floor, 25500, 0), seed=11)
     situations = []
@@ -122,7 +126,7 @@ def bench_angle(plan: FloorPlan, config: RobotConfig, spec: RobotSpec, cases: in
     whole = Floor.model_validate(
         {**floor.model_dump(), "angle_zones": [{"id": "all", "from_mm": 0, "to_mm": 44000}]}
     )
-    setups = [
+    setups: list[tuple[str, Floor, float, float, float, str]] = [
         ("situation1", floor, 25300, -380, 35.0, "right"),
         ("situation2", floor, 25500, -380, 0.0, "right"),
         ("situation3", floor, 25150, -300, 180.0 + 12.0, "left"),
@@ -184,7 +188,9 @@ def _round(value: float | None, digits: int = 2) -> float | None:
 # --- doors --------------------------------------------------------------------------------
 
 
-def bench_door(plan: FloorPlan, config: RobotConfig, spec: RobotSpec, speeds: list[int]) -> dict:
+def bench_door(
+    plan: FloorPlan, config: RobotConfig, spec: RobotSpec, speeds: list[int]
+) -> dict[str, Any]:
     by_speed = []
     errors: list[float] = []
     late: list[float] = []
@@ -258,7 +264,7 @@ def _clearance(world: World, obstacle: ObstacleSpec) -> float:
 
 def _approach(
     plan: FloorPlan, config: RobotConfig, spec: RobotSpec, obstacle: ObstacleSpec, speed: float
-) -> dict:
+) -> dict[str, Any]:
     floor = plan.floor(obstacle.floor)
     start_s = floor.to_hallway(obstacle.x_mm, obstacle.y_mm)[0] - 5000
     world = World(
@@ -371,7 +377,7 @@ UNDETECTABLE = {
 
 def bench_collision(
     plan: FloorPlan, config: RobotConfig, spec: RobotSpec, speeds: list[int]
-) -> dict:
+) -> dict[str, Any]:
     runs = [
         _approach(plan, config, spec, obstacle, speed)
         for obstacle in _obstacles(plan.floor(2))
@@ -403,7 +409,9 @@ def bench_collision(
 # --- localization -------------------------------------------------------------------------
 
 
-def bench_localization(plan: FloorPlan, config: RobotConfig, spec: RobotSpec, speed: float) -> dict:
+def bench_localization(
+    plan: FloorPlan, config: RobotConfig, spec: RobotSpec, speed: float
+) -> dict[str, Any]:
     fused: list[float] = []
     uwb: list[float] = []
     for level in (2, 3):

@@ -40,7 +40,10 @@ def board_fanout(subscribers: int) -> tuple[Publish, Receive]:
     async def receive(i: int) -> Sample:
         return (await subs[i].get()).msg
 
-    return (lambda msg: board.publish(TOPIC, msg)), receive
+    def publish(msg: Sample) -> None:
+        board.publish(TOPIC, msg)
+
+    return publish, receive
 
 
 def queue_fanout(subscribers: int) -> tuple[Publish, Receive]:

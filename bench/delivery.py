@@ -4,7 +4,7 @@
     python bench/delivery.py --json          # one JSON object
     python bench/delivery.py --runs 10 --seed 7 --speed 4
 
-Each run is a scenario (``coffeebot.sim.scenario``) run through the whole daemon: drivers on
+Each run is a scenario (``coffeebot.scenario``) run through the whole daemon: drivers on
 the simulated buses, perception, state, navigation, motion, the simulated elevator. The room
 is drawn from every office of the floor plan; with probability one half a static obstacle
 from the seed's set stands in the lane somewhere on the way (a cardboard box or a mail cart,
@@ -29,9 +29,10 @@ import numpy as np
 
 from coffeebot.config import load_robot_config
 from coffeebot.floorplan import FloorPlan, load_floorplan
-from coffeebot.runtime import run_scenario
-from coffeebot.sim.scenario import OrderSpec, Scenario, StartPose
+from coffeebot.scenario.run import run_scenario
+from coffeebot.scenario.spec import OrderSpec, Scenario, StartPose
 from coffeebot.sim.world import ObstacleSpec
+from coffeebot.sim.world.obstacles import ObstacleKind
 
 ROOT = Path(__file__).resolve().parents[1]
 PLAN_PATH = ROOT / "floorplans" / "cs-building.toml"
@@ -39,7 +40,7 @@ START = StartPose(floor=2, x_mm=41500, y_mm=295, heading_deg=180)
 """By the tea room door, facing down the hallway (floor 2 rooms)."""
 START_ELEVATOR = START.model_copy(update={"heading_deg": 0.0})
 """Facing the elevator end (floor 3 rooms): no turn on the spot beside the wall."""
-LANE_OBSTACLES = ("cardboard_box", "mail_cart")
+LANE_OBSTACLES: tuple[ObstacleKind, ...] = ("cardboard_box", "mail_cart")
 
 
 def random_scenario(plan: FloorPlan, rng: random.Random, index: int) -> Scenario:
@@ -83,31 +84,33 @@ async def bench(runs: int, seed: int, speed: float) -> dict[str, Any]:
     config = load_robot_config(ROOT / "boards" / "coffeebot-v1.toml")
     plan = load_floorplan(PLAN_PATH)
     rng = random.Random(seed)
-    rows = []
+    rows: list[dict[str, Any]] = []
     for i in range(runs):
         scenario = random_scenario(plan, rng, i)
         report = await run_scenario(config, scenario, plan, speed=speed)
-        order = report["orders"][0]
+        order = report.orders[0]
         delivery_s = None
-        if order["delivered_at_s"] is not None:
-            delivery_s = order["arrived_at_s"] - order["placed_at_s"]
+        if (
+            order.delivered_at_s is not None
+            and order.arrived_at_s is not None
+            and order.placed_at_s is not None
+        ):
+            delivery_s = order.arrived_at_s - order.placed_at_s
         rows.append(
             {
                 "scenario": scenario.name,
-                "status": order["status"],
-                "detail": order["detail"],
-                "stop_error_mm": order["stop_error_mm"],
-                "collisions": len(report["collisions"]),
-                "contacts": report["collisions"],
+                "status": order.status,
+                "detail": order.detail,
+                "stop_error_mm": order.stop_error_mm,
+                "collisions": len(report.collisions),
+                "contacts": [c.model_dump() for c in report.collisions],
                 "delivery_s": delivery_s,
-                "speed_mm_s": report["travelled_mm"] / report["moving_s"]
-                if report["moving_s"]
-                else None,
+                "speed_mm_s": report.mean_speed_mm_s,
             }
         )
-    errors = [r["stop_error_mm"] for r in rows if r["stop_error_mm"] is not None]
-    times = [r["delivery_s"] for r in rows if r["delivery_s"] is not None]
-    speeds = [r["speed_mm_s"] for r in rows if r["speed_mm_s"] is not None]
+    errors = [float(r["stop_error_mm"]) for r in rows if r["stop_error_mm"] is not None]
+    times = [float(r["delivery_s"]) for r in rows if r["delivery_s"] is not None]
+    speeds = [float(r["speed_mm_s"]) for r in rows if r["speed_mm_s"] is not None]
     return {
         "runs": runs,
         "delivered": sum(r["status"] == "delivered" for r in rows),

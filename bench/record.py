@@ -15,8 +15,9 @@ import argparse
 import asyncio
 import statistics
 import tempfile
-from collections.abc import Awaitable, Callable
+from collections.abc import Callable, Coroutine
 from pathlib import Path
+from typing import Any
 
 from coffeebot.board import Board
 from coffeebot.board.recording import Recorder
@@ -82,7 +83,7 @@ async def ticker(board: Board, samples: Samples) -> None:
         samples.lag_ms.append(max(0.0, board.clock.now() - due) * 1e3)
 
 
-def traffic(board: Board, samples: Samples, scan_hz: float) -> list[Awaitable[None]]:
+def traffic(board: Board, samples: Samples, scan_hz: float) -> list[Coroutine[Any, Any, None]]:
     def scan(n: int) -> None:
         readings = [
             RangeReading(sensor=i, status=ReadingStatus.VALID, distance_mm=800 + (n * 7 + i) % 300)

@@ -35,9 +35,13 @@ from coffeebot.floorplan import load_floorplan
 from coffeebot.logs import setup_logging
 from coffeebot.messages import OrderStatus
 from coffeebot.modules.base import Module, ModuleContext
-from coffeebot.modules.web import WebModule
-from coffeebot.runtime import Runtime, build_sim, serve
-from coffeebot.sim.scenario import OrderSpec, Scenario, ScenarioModule, StartPose
+from coffeebot.runtime.assemble import Runtime
+from coffeebot.runtime.service import serve
+from coffeebot.runtime.sim import build_sim
+from coffeebot.scenario.driver import ScenarioModule
+from coffeebot.scenario.spec import OrderSpec, Scenario, StartPose
+from coffeebot.sim.simulation import Simulation
+from coffeebot.web import WebModule
 
 ROOT = Path(__file__).resolve().parents[1]
 BOARD = ROOT / "boards" / "coffeebot-v1.toml"
@@ -68,16 +72,16 @@ class Probe(Module):
 
     name = "soak"
 
-    def __init__(self, runtime: Runtime, minutes: float, warmup_s: float) -> None:
+    def __init__(self, runtime: Runtime, sim: Simulation, minutes: float, warmup_s: float) -> None:
         self.runtime = runtime
+        self.sim = sim
         self.duration_s = minutes * 60
         self.warmup_s = warmup_s
         self.first: Sample | None = None
         self.last: Sample | None = None
 
     def sample(self) -> Sample:
-        sim = self.runtime.sim
-        assert sim is not None
+        sim = self.sim
         with sim.lock:
             world_cpu_s, sim_s = sim.cpu_s, sim.t_s
         return Sample(time.monotonic(), time.process_time(), world_cpu_s, rss_mb(), sim_s)
@@ -167,12 +171,11 @@ async def soak(minutes: float, speed: float, warmup_s: float, order_every_s: flo
     probe: list[Probe] = []
     page: list[OrderPage] = []
 
-    def add(runtime: Runtime) -> list[Module]:
-        assert runtime.sim is not None
+    def add(runtime: Runtime, sim: Simulation) -> list[Module]:
         driver = ScenarioModule(
-            scenario, plan, runtime.config, runtime.sim, runtime.orders, runtime.request_stop
+            scenario, plan, runtime.config, sim, runtime.orders, runtime.request_stop
         )
-        probe.append(Probe(runtime, minutes, warmup_s))
+        probe.append(Probe(runtime, sim, minutes, warmup_s))
         page.append(OrderPage(runtime))
         return [driver, probe[0], page[0]]
 
@@ -187,7 +190,7 @@ async def soak(minutes: float, speed: float, warmup_s: float, order_every_s: flo
         "delivered | failed | preparing | queued |"
     )
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
-    async with build_sim(config, plan, scenario.setup(speed), add, web=True) as runtime:
+    async with build_sim(config, plan, scenario.setup(speed), add, web=True) as (runtime, _):
         await serve(runtime)
     first, last = probe[0].first, probe[0].last
     if first is None or last is None:

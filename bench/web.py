@@ -41,9 +41,13 @@ from coffeebot.clock import ScaledClock
 from coffeebot.config import load_robot_config
 from coffeebot.messages import COLLISION, ORDER_UPDATE, RANGE_SCAN, OrderStatus
 from coffeebot.modules.base import Module, ModuleContext
-from coffeebot.modules.web import WebModule
-from coffeebot.runtime import Runtime, build_sim, serve
-from coffeebot.sim.scenario import ScenarioModule, Staff, load_scenario
+from coffeebot.runtime.assemble import Runtime
+from coffeebot.runtime.service import serve
+from coffeebot.runtime.sim import build_sim
+from coffeebot.scenario.driver import ScenarioModule
+from coffeebot.scenario.spec import Staff, load_scenario
+from coffeebot.sim.simulation import Simulation
+from coffeebot.web import WebModule
 
 ROOT = Path(__file__).resolve().parents[1]
 BOARD = ROOT / "boards" / "coffeebot-v1.toml"
@@ -222,6 +226,7 @@ class LoadBench(Module):
     """Waits until the order is on its way, then runs the load phases and ends the run."""
 
     runtime: Runtime
+    sim: Simulation
     tap: LoopTap
     requests: int
     seconds: float
@@ -267,8 +272,7 @@ class LoadBench(Module):
             self.rows.append(await self.measure(ctx, web.url, phase))
 
     async def measure(self, ctx: ModuleContext, url: str, phase: Phase) -> Row:
-        sim = self.runtime.sim
-        assert sim is not None
+        sim = self.sim
         clock = ctx.clock
 
         def sample() -> tuple[float, float, float, float, tuple[float, float]]:
@@ -317,19 +321,18 @@ async def serve_and_measure(
     period_s = 1.0 / tof.scan_rate_hz if tof.scan_rate_hz else tof.timing_budget_ms / 1000.0
     bench: list[LoadBench] = []
 
-    def add(runtime: Runtime) -> list[Module]:
-        assert runtime.sim is not None
+    def add(runtime: Runtime, sim: Simulation) -> list[Module]:
         clock = runtime.board.clock
         assert isinstance(clock, ScaledClock)
         clock.set_rate = lambda rate: None  # type: ignore[method-assign]
         driver = ScenarioModule(
-            scenario, plan, runtime.config, runtime.sim, runtime.orders, runtime.request_stop
+            scenario, plan, runtime.config, sim, runtime.orders, runtime.request_stop
         )
         tap = LoopTap(runtime.board)
-        bench.append(LoadBench(runtime, tap, requests, seconds, streams, period_s))
+        bench.append(LoadBench(runtime, sim, tap, requests, seconds, streams, period_s))
         return [driver, bench[0]]
 
-    async with build_sim(config, plan, scenario.setup(1.0), add, web=True) as runtime:
+    async with build_sim(config, plan, scenario.setup(1.0), add, web=True) as (runtime, _):
         await serve(runtime)
     if bench[0].error or not bench[0].rows:
         raise SystemExit(f"benchmark failed: {bench[0].error or 'the run ended first'}")

@@ -50,6 +50,17 @@ def test_record_info_on_a_missing_file_is_an_error(
     assert "none.mcap" in capsys.readouterr().err
 
 
+def test_record_info_on_a_file_that_is_no_recording_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+):
+    junk = tmp_path / "junk.mcap"
+    junk.write_bytes(b"not a recording at all")
+    assert main(["record", "--info", str(junk)]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"coffeebot: {junk}: not a readable MCAP file")
+    assert len(err.strip().splitlines()) == 1
+
+
 def test_replay_fast_and_record_the_replayed_board(recording: Path, tmp_path: Path):
     again = tmp_path / "again.mcap"
     assert main(["replay", str(recording), "--speed", "50", "--record", str(again)]) == 0

@@ -1,4 +1,9 @@
-"""The ``coffeebot`` command: run on the robot, run the simulator, and the tools around them."""
+"""The ``coffeebot`` command: run on the robot, run the simulator, and the tools around them.
+
+``coffeebot run`` must not load the simulator (the robot has no use for it and should not
+pay for it), so everything of ``sim/`` and ``scenario/`` is imported inside the commands that
+use it.
+"""
 
 from __future__ import annotations
 
@@ -7,24 +12,29 @@ import asyncio
 import contextlib
 import json
 import logging
+import os
 import sys
+import time
+from dataclasses import asdict
 from pathlib import Path
 
-from coffeebot import runtime
 from coffeebot.board import Board
 from coffeebot.board.recording import Player, RecordingError, recording_info
 from coffeebot.clock import ScaledClock
-from coffeebot.config import ConfigError, RobotConfig, load_robot_config
+from coffeebot.config import RobotConfig, load_robot_config
 from coffeebot.daemon import Daemon
+from coffeebot.errors import ConfigError
 from coffeebot.floorplan import FloorPlan, load_floorplan
 from coffeebot.floorplan_svg import add_render_arguments, render_command
-from coffeebot.hardware.selfcheck import SelfCheckFailed
+from coffeebot.hardware.i2c import kernel_bus_hz, open_i2c_bus
+from coffeebot.hardware.selfcheck import CheckResult, SelfCheckFailed, run_checks
 from coffeebot.install import install_service
 from coffeebot.logs import setup_logging
 from coffeebot.messages import ALL_TOPICS
 from coffeebot.modules.base import Module
-from coffeebot.sim.scenario import load_scenario
-from coffeebot.sim.simulation import demo_setup
+from coffeebot.runtime.assemble import Runtime
+from coffeebot.runtime.robot import build_robot
+from coffeebot.runtime.service import StopAfter, recorder, serve
 
 log = logging.getLogger("coffeebot")
 
@@ -86,17 +96,23 @@ def build_parser() -> argparse.ArgumentParser:
 
 async def _sim(config: RobotConfig, plan: FloorPlan, args: argparse.Namespace) -> None:
     """The demo: daemon, world and web UI (or headless for ``--duration`` seconds)."""
+    from coffeebot.runtime.sim import build_sim
+    from coffeebot.sim.simulation import Simulation, demo_setup
+
     duration = args.duration
 
-    def extra(rt: runtime.Runtime) -> list[Module]:
-        return [] if duration is None else [runtime.StopAfter(rt, duration)]
+    def extra(rt: Runtime, _sim: Simulation) -> list[Module]:
+        return [] if duration is None else [StopAfter(rt, duration)]
 
     setup = demo_setup(plan, args.speed)
-    async with runtime.build_sim(config, plan, setup, extra, web=not args.headless) as rt:
-        await runtime.serve(rt, args.record)
+    async with build_sim(config, plan, setup, extra, web=not args.headless) as (rt, _):
+        await serve(rt, args.record)
 
 
 def _sim_command(config: RobotConfig, args: argparse.Namespace) -> int:
+    from coffeebot.scenario.run import run_scenario
+    from coffeebot.scenario.spec import load_scenario
+
     config = config.model_copy(
         update={"web": config.web.model_copy(update={"host": args.host, "port": args.port})}
     )
@@ -108,7 +124,7 @@ def _sim_command(config: RobotConfig, args: argparse.Namespace) -> int:
         return 0
     scenario, plan = load_scenario(args.scenario)
     report = asyncio.run(
-        runtime.run_scenario(
+        run_scenario(
             config,
             scenario,
             plan,
@@ -117,13 +133,54 @@ def _sim_command(config: RobotConfig, args: argparse.Namespace) -> int:
             record=args.record,
         )
     )
-    text = json.dumps(report, indent=2)
+    text = report.model_dump_json(indent=2)
     if args.report is None:
         print(text)
     else:
         args.report.write_text(text + "\n")
         log.info("report written", extra={"path": str(args.report)})
     return 0
+
+
+def format_table(results: list[CheckResult]) -> str:
+    rows = [("component", "channel/port", "result", "detail")] + [
+        (r.component, r.where, "FAIL" if not r.ok else "WARN" if r.warning else "ok", r.detail)
+        for r in results
+    ]
+    widths = [max(len(row[i]) for row in rows) for i in range(3)]
+    return "\n".join(
+        "  ".join(cell.ljust(w) for cell, w in zip(row[:3], widths, strict=True)) + "  " + row[3]
+        for row in rows
+    )
+
+
+def _check_hardware(config: RobotConfig, args: argparse.Namespace) -> int:
+    """Run every probe, print the table (or JSON); 0 only if every part passed."""
+    started = time.monotonic()
+    if args.sim:
+        from coffeebot.sim.selfcheck import FAULT_ENV, simulated_robot
+
+        with contextlib.ExitStack() as devices:
+            try:
+                robot = simulated_robot(config, args.fault or os.environ.get(FAULT_ENV))
+                sim_config, bus = devices.enter_context(robot)
+            except ValueError as exc:  # an unknown fault
+                print(f"coffeebot: {exc}", file=sys.stderr)
+                return 2
+            results = run_checks(sim_config, bus)
+    else:
+        bus = open_i2c_bus(config.i2c.bus)
+        try:
+            results = run_checks(config, bus, kernel_hz=kernel_bus_hz(config.i2c.bus))
+        finally:
+            bus.close()
+    ok = all(r.ok for r in results)
+    if args.json:
+        print(json.dumps({"ok": ok, "results": [asdict(r) for r in results]}, indent=2))
+    else:
+        print(format_table(results))
+        print(f"\n{'all parts ok' if ok else 'FAILED'} ({time.monotonic() - started:.1f} s)")
+    return 0 if ok else 1
 
 
 async def _replay(config: RobotConfig, args: argparse.Namespace) -> None:
@@ -133,7 +190,7 @@ async def _replay(config: RobotConfig, args: argparse.Namespace) -> None:
     daemon = Daemon(board, modules=[], supervision=config.supervision)
     daemon.install_signal_handlers()
     player = Player(board, args.file, args.topic, on_start=clock.restart)
-    async with runtime.recorder(board, args.record, config):
+    async with recorder(board, args.record, config):
         playing = asyncio.create_task(player.run())
         playing.add_done_callback(lambda _: daemon.request_stop("replay finished"))
         await daemon.run()
@@ -172,9 +229,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     setup_logging(args.log_level or config.logging.level)
     if args.command == "check-hardware":
-        from coffeebot.hardware import selfcheck
-
-        return selfcheck.main(config, sim=args.sim, as_json=args.json, fault=args.fault)
+        return _check_hardware(config, args)
     log.info("starting %s", args.command, extra={"board": str(args.board)})
     if args.command == "replay":
         try:
@@ -186,8 +241,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.command == "sim":
             return _sim_command(config, args)
-        robot = runtime.build_robot(config, load_floorplan(args.floorplan))
-        asyncio.run(runtime.serve(robot, args.record))
+        robot = build_robot(config, load_floorplan(args.floorplan))
+        asyncio.run(serve(robot, args.record))
     except (ConfigError, SelfCheckFailed, OSError) as exc:
         print(f"coffeebot: {exc}", file=sys.stderr)
         return 2 if isinstance(exc, ConfigError) else 1

@@ -13,11 +13,8 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from coffeebot.errors import ConfigError
 from coffeebot.hardware.vl53l1x import field_of_view_deg
-
-
-class ConfigError(ValueError):
-    """A configuration or floor-plan file that cannot be used, with the reason."""
 
 
 class Section(BaseModel):
@@ -28,7 +25,12 @@ class I2CConfig(Section):
     bus: int = Field(1, ge=0, description="Linux I2C bus number (/dev/i2c-N)")
     mux_address: int = Field(0x70, ge=0x70, le=0x77, description="TCA9548A address")
     sensor_address: int = Field(0x29, ge=0x08, le=0x77, description="VL53L1X address")
-    frequency_hz: int = Field(400_000, gt=0, description="bus clock, for time budgets only")
+    frequency_hz: int = Field(
+        400_000,
+        gt=0,
+        description="the bus clock the sensors need: at 100 kHz eight sensors' transfers take "
+        "longer than a scan (bench/tof.py); the self-check warns when the kernel runs it slower",
+    )
 
 
 class TofSensorConfig(Section):
@@ -286,7 +288,6 @@ class StateConfig(Section):
     )
     door_sigma_mm: float = Field(40.0, gt=0, description="1-sigma of a matched door landmark")
     wall_sigma_mm: float = Field(30.0, gt=0, description="1-sigma of a wall-distance fix")
-    publish_hz: float = Field(20.0, gt=0)
     speed_window_s: float = Field(
         0.1,
         gt=0,

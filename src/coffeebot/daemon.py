@@ -16,7 +16,6 @@ import logging
 import signal
 from collections import deque
 from collections.abc import Iterable
-from typing import Any
 
 from coffeebot.board import Board
 from coffeebot.clock import Clock
@@ -50,12 +49,10 @@ class Daemon:
         board: Board,
         modules: Iterable[Module],
         supervision: SupervisionConfig | None = None,
-        extras: dict[str, Any] | None = None,
     ) -> None:
         self.board = board
         self.clock: Clock = board.clock
         self.supervision = supervision or SupervisionConfig()
-        self.extras = extras or {}
         self.states: dict[str, ModuleState] = {}
         for module in modules:
             if module.name in self.states:
@@ -85,7 +82,13 @@ class Daemon:
         The health topic carries changes; a page opened later needs the current state.
         """
         return [
-            Health(module=s.module.name, status=s.status, restarts=s.restarts, detail=s.last_error)
+            Health(
+                module=s.module.name,
+                status=s.status,
+                restarts=s.restarts,
+                detail=s.last_error,
+                publishes=_published(s.module),
+            )
             for s in self.states.values()
         ]
 
@@ -97,6 +100,7 @@ class Daemon:
                 status=state.status,
                 restarts=state.restarts,
                 detail=detail,
+                publishes=_published(state.module),
             ),
         )
 
@@ -107,7 +111,6 @@ class Daemon:
             board=ModuleBoard(self.board, module),
             clock=self.clock,
             log=logging.getLogger(f"coffeebot.module.{module.name}"),
-            extras=self.extras,
         )
         backoff = cfg.restart_backoff_s
         while True:
@@ -198,3 +201,7 @@ class Daemon:
                     await state.task
             state.status = HealthStatus.STOPPED
             self._report(state, "daemon stopped")
+
+
+def _published(module: Module) -> tuple[str, ...]:
+    return tuple(topic.name for topic in module.outputs)

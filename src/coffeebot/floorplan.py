@@ -24,7 +24,7 @@ from typing import Any, Literal, NamedTuple
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from coffeebot.config import ConfigError
+from coffeebot.errors import ConfigError
 
 Side = Literal["left", "right"]
 
@@ -260,7 +260,9 @@ class Floor(_Model):
         half = self.hallway.width_mm / 2
         length = self.hallway.length_mm
 
-        def seg(element: str, a: tuple[float, float], b: tuple[float, float], top: float = h):
+        def seg(
+            element: str, a: tuple[float, float], b: tuple[float, float], top: float = h
+        ) -> WallSegment:
             return WallSegment(element, *self.from_hallway(*a), *self.from_hallway(*b), 0.0, top)
 
         for side, sign in (("left", 1.0), ("right", -1.0)):
@@ -432,7 +434,7 @@ def _check_consistency(plan: FloorPlan, path: str | Path) -> None:
         length = floor.hallway.length_mm
         for side in ("left", "right"):
             previous: Door | Opening | None = None
-            for feature in floor.features(side):  # type: ignore[arg-type]
+            for feature in floor.features(side):
                 kind = "door" if isinstance(feature, Door) else "opening"
                 lo, hi = feature.span
                 if lo < 0 or hi > length:

@@ -136,11 +136,11 @@ def attached_to_journal(stream: TextIO, environ: Mapping[str, str] | None = None
     return (stat.st_dev, stat.st_ino) == (device, inode)
 
 
-class StderrHandler(logging.StreamHandler):  # type: ignore[type-arg]
+class StderrHandler(logging.StreamHandler[TextIO]):
     """Writes to whatever ``sys.stderr`` is at the time, as ``logging.lastResort`` does, so a
     replaced stderr (a test's capture, a redirected daemon) never receives writes once closed."""
 
-    @property  # type: ignore[override]
+    @property
     def stream(self) -> TextIO:
         return sys.stderr
 

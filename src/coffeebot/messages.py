@@ -9,7 +9,7 @@ from +x. Robot-frame quantities use x forward, y left, origin at the body centre
 from __future__ import annotations
 
 from enum import StrEnum
-from typing import Literal
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -42,6 +42,10 @@ class Health(Message):
     status: HealthStatus
     restarts: int = 0
     detail: str = ""
+    publishes: tuple[str, ...] = ()
+    """The topics the module publishes, in the supervisor's reports (empty for a component):
+    motion knows the health of whatever writes the collision verdicts from this, not from
+    a module's name."""
 
 
 # --- sensors ------------------------------------------------------------------------------
@@ -208,12 +212,31 @@ class OrderDispatch(Message):
     name: str
 
 
+class DeliveryProblem(StrEnum):
+    """What went wrong with a delivery, for code to act on (``detail`` says it to people)."""
+
+    CUP_NOT_LOADED = "cup_not_loaded"
+    NOT_PICKED_UP = "not_picked_up"
+    UNKNOWN_ROOM = "unknown_room"
+    LOST = "lost"
+    """The robot does not know where it is."""
+    BLOCKED = "blocked"
+    ELEVATOR = "elevator"
+    """The elevator does not answer, or the robot cannot confirm the floor it brought it to."""
+    MOTION_SILENT = "motion_silent"
+
+
 class DeliveryUpdate(Message):
     """Navigation reports progress on the dispatched order; the orders module persists it."""
 
     order_id: str
     status: OrderStatus
     detail: str = ""
+    ready_for_cup: bool = False
+    """``preparing``, and the robot stands in the tea room ready for the cup: staff load it
+    from now on (an order is dispatched while the robot may still be driving back)."""
+    problem: DeliveryProblem | None = None
+    """Set on a failure, and while the delivery is held (blocked, an unanswered elevator)."""
 
 
 class OperatorEvent(Message):
@@ -323,6 +346,19 @@ class MotionState(StrEnum):
     DONE = "done"
 
 
+class StopCause(StrEnum):
+    """Why motion's safety gate holds the robot."""
+
+    ESTOP = "estop"
+    COLLISION_MODULE_DOWN = "collision_module_down"
+    """The writer of the collision verdicts is failed, stopped or restarting."""
+    NO_VERDICT = "no_verdict"
+    STALE_VERDICT = "stale_verdict"
+    COLLISION_STOP = "collision_stop"
+    NO_FRESH_POSE = "no_fresh_pose"
+    SHUTTING_DOWN = "shutting_down"
+
+
 class MotionStatus(Message):
     """Motion's progress on one instruction: navigation sequences its route on this."""
 
@@ -331,6 +367,8 @@ class MotionStatus(Message):
     since_s: float = Field(0.0, ge=0, description="how long it has been in this state")
     remaining_mm: float | None = None
     detail: str = ""
+    stopped_by: StopCause | None = None
+    """Set while the safety gate holds the robot (``safety_stop``)."""
 
 
 class ElevatorRequest(Message):
@@ -379,11 +417,14 @@ class CurrentState(Message):
 
 
 class OrderUpdate(Message):
-    """The orders module stored a change to an order; pages showing orders refresh from it."""
+    """The orders module stored a change to an order; pages showing orders refresh from it.
+    ``ready_for_cup`` and ``problem`` are navigation's, as reported (``DeliveryUpdate``)."""
 
     order_id: str
     status: OrderStatus
     detail: str = ""
+    ready_for_cup: bool = False
+    problem: DeliveryProblem | None = None
 
 
 HEALTH = Topic("system/health", Health, Delivery.RELIABLE, queue_size=1024)
@@ -405,7 +446,7 @@ MOTION_STATUS = Topic("motion/status", MotionStatus, Delivery.LATEST)
 ELEVATOR_REQUEST = Topic("elevator/request", ElevatorRequest, Delivery.RELIABLE)
 ELEVATOR_STATE = Topic("elevator/state", ElevatorState, Delivery.LATEST)
 
-ALL_TOPICS: tuple[Topic, ...] = (
+ALL_TOPICS: tuple[Topic[Any], ...] = (
     HEALTH,
     RANGE_SCAN,
     UWB_FIX,

@@ -4,7 +4,8 @@ from pathlib import Path
 
 import pytest
 
-from coffeebot.config import ConfigError, load_robot_config
+from coffeebot.config import load_robot_config
+from coffeebot.errors import ConfigError
 
 BOARD = Path(__file__).resolve().parents[2] / "boards" / "coffeebot-v1.toml"
 

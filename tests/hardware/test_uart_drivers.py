@@ -41,6 +41,36 @@ def test_parse_bare_pos() -> None:
 
 
 @pytest.mark.parametrize(
+    ("line", "anchors_mm", "fix_mm"),
+    [
+        # metres whose float times 1000 is not the millimetres: 4.02, 2.01, 8.03
+        (
+            "DIST,2,AN0,1C2A,4.02,2.01,2.50,3.15,AN1,8E14,0.00,8.03,2.50,4.02,POS,2.01,4.02,1.00,71",
+            [(4020, 2010, 2500, 3150), (0, 8030, 2500, 4020)],
+            (2010, 4020, 1000),
+        ),
+        (
+            "DIST,1,AN0,022E,40.20,-0.07,0.00,12.34,POS,28.14,-0.05,0.3,100",
+            [(40200, -70, 0, 12340)],
+            (28140, -50, 300),
+        ),
+        ("POS,4.02,2.01,-8.03,53", [], (4020, 2010, -8030)),
+        ("DIST,1,AN0,9280,8.03,4.020,0.00,2.01", [(8030, 4020, 0, 2010)], None),
+    ],
+)
+def test_lec_decimals_are_exact_millimetres(
+    line: str, anchors_mm: list[tuple[int, int, int, int]], fix_mm: tuple[int, int, int] | None
+) -> None:
+    report = parse_lec(line)
+    assert [(a.x_mm, a.y_mm, a.z_mm, a.distance_mm) for a in report.anchors] == anchors_mm
+    if fix_mm is None:
+        assert report.fix is None
+    else:
+        assert report.fix is not None
+        assert (report.fix.x_mm, report.fix.y_mm, report.fix.z_mm) == fix_mm
+
+
+@pytest.mark.parametrize(
     "line",
     [
         "",
@@ -50,6 +80,9 @@ def test_parse_bare_pos() -> None:
         LEC[:60] + LEC,  # a partial line run into the next one
         LEC.replace("AN2,", "AN7,"),
         LEC.replace("6.95", "nan"),
+        LEC.replace("6.95", "7e3"),  # metres as the shell prints them, nothing else
+        LEC.replace("6.95", "6.9512"),  # finer than a millimetre
+        LEC.replace("6.95", "6,95"),
         LEC.replace(",52", ",140"),
         LEC + ",7",
         "DIST,-1",

@@ -13,6 +13,7 @@ from coffeebot.messages import (
     CURRENT_STATE,
     ESTOP,
     HEALTH,
+    MOTION_STATUS,
     MOTOR_COMMAND,
     MOVE_INSTRUCTION,
     CollisionStatus,
@@ -20,8 +21,10 @@ from coffeebot.messages import (
     EStop,
     Health,
     HealthStatus,
+    MotionStatus,
     MoveInstruction,
     SafetyState,
+    StopCause,
 )
 from coffeebot.modules.motion import MotionModule, safety_gate
 from manual_clock import ManualClock
@@ -77,7 +80,7 @@ async def test_stale_collision_verdict_stops(rig: Rig) -> None:
     await rig.run_for(1.0)
     await rig.run_for(CONFIG.motion.stale_safety_s * 2, collision=None)
     assert rig.speed() == 0
-    assert "old" in rig.board.latest(MOTOR_COMMAND).msg.reason
+    assert motion_status(rig).stopped_by is StopCause.STALE_VERDICT
 
 
 async def test_no_verdict_at_all_stops(rig: Rig) -> None:
@@ -101,10 +104,18 @@ async def test_slow_verdict_caps_the_speed(rig: Rig) -> None:
 
 async def test_failed_collision_module_stops(rig: Rig) -> None:
     await rig.run_for(1.0)
-    rig.board.publish(HEALTH, Health(module="collision", status=HealthStatus.FAILED))
+    failed = Health(module="perception", status=HealthStatus.FAILED, publishes=(COLLISION.name,))
+    rig.board.publish(HEALTH, failed)
     await rig.run_for(0.2)
     assert rig.speed() == 0
-    assert "collision module failed" in rig.board.latest(MOTOR_COMMAND).msg.reason
+    assert motion_status(rig).stopped_by is StopCause.COLLISION_MODULE_DOWN
+
+
+async def test_another_module_failing_does_not_hold_the_robot(rig: Rig) -> None:
+    await rig.run_for(1.0)
+    rig.board.publish(HEALTH, Health(module="door", status=HealthStatus.FAILED))
+    await rig.run_for(0.2)
+    assert rig.speed() > 0
 
 
 async def test_estop_stops_and_release_resumes(rig: Rig) -> None:
@@ -128,6 +139,12 @@ def test_gate_prefers_stop_on_any_doubt() -> None:
     assert safety_gate(None, None, None, None, 0.2).stop
     assert safety_gate(None, None, EStop(engaged=True, source="x"), HealthStatus.RUNNING, 0.2).stop
     assert safety_gate(None, None, None, HealthStatus.RESTARTING, 0.2).stop
+
+
+def motion_status(rig: Rig) -> MotionStatus:
+    status = rig.board.latest(MOTION_STATUS)
+    assert status is not None
+    return status.msg
 
 
 def wheels(rig: Rig) -> tuple[float, float]:

@@ -21,6 +21,7 @@ from coffeebot.messages import (
     OPERATOR_EVENT,
     ORDER_DISPATCH,
     CurrentState,
+    DeliveryProblem,
     ElevatorState,
     MotionState,
     MotionStatus,
@@ -29,7 +30,6 @@ from coffeebot.messages import (
     OrderStatus,
 )
 from coffeebot.modules.navigation import NavigationModule
-from coffeebot.navigation.lifecycle import READY_FOR_CUP
 from coffeebot.navigation.route import RoutePlanner
 from manual_clock import ManualClock
 
@@ -146,8 +146,8 @@ async def test_no_cup_no_delivery(rig) -> None:
     await clock.advance(CONFIG.navigation.loading_timeout_s + 1)
     updates = [e.msg for e in iter(statuses.get_nowait, None)]
     assert [u.status for u in updates] == [OrderStatus.PREPARING, OrderStatus.FAILED]
-    assert updates[0].detail == READY_FOR_CUP
-    assert "not loaded" in updates[1].detail
+    assert updates[0].ready_for_cup
+    assert updates[1].problem is DeliveryProblem.CUP_NOT_LOADED
 
 
 async def test_nobody_at_the_door_takes_the_cup_back(rig) -> None:
@@ -160,7 +160,7 @@ async def test_nobody_at_the_door_takes_the_cup_back(rig) -> None:
     await clock.advance(CONFIG.navigation.pickup_timeout_s + 5)
     updates = [e.msg for e in iter(statuses.get_nowait, None)]
     assert [u.status for u in updates][-1] is OrderStatus.FAILED
-    assert "nobody picked" in updates[-1].detail
+    assert updates[-1].problem is DeliveryProblem.NOT_PICKED_UP
     await stop(tasks)
 
 
@@ -174,11 +174,13 @@ async def test_silent_elevator_retries_then_asks_an_operator(rig) -> None:
     elevator = CONFIG.navigation.elevator
     await clock.advance(elevator.call_timeout_s * (elevator.call_retries + 1) + 1)
     updates = [e.msg for e in iter(statuses.get_nowait, None)]
-    assert "operator" in updates[-1].detail
+    assert updates[-1].status is OrderStatus.WAITING_FOR_ELEVATOR
+    assert updates[-1].problem is DeliveryProblem.ELEVATOR
     # Nobody confirms either: the delivery fails with the reason instead of waiting forever.
     await clock.advance(elevator.operator_timeout_s + 1)
     updates = [e.msg for e in iter(statuses.get_nowait, None)]
-    assert updates[0].status is OrderStatus.FAILED and "elevator" in updates[0].detail
+    assert updates[0].status is OrderStatus.FAILED
+    assert updates[0].problem is DeliveryProblem.ELEVATOR
     await stop(tasks)
 
 

@@ -6,7 +6,7 @@ import math
 
 from helpers import CONFIG, PLAN
 
-from coffeebot.messages import OrderStatus
+from coffeebot.messages import DeliveryProblem, OrderStatus
 from coffeebot.navigation.control import SpeedProfile, wheel_speeds
 from coffeebot.navigation.lifecycle import DeliveryLifecycle
 from coffeebot.navigation.route import ElevatorRide, Move, RoutePlanner
@@ -114,7 +114,7 @@ def test_lifecycle_reports_each_status_once_and_in_order() -> None:
     assert life.progress("floor 3").status is OrderStatus.ON_THE_WAY
     assert life.arrived("door").status is OrderStatus.ARRIVED
     assert life.pickup_confirmed().status is OrderStatus.DELIVERED
-    assert life.cancel() is None and life.fail("late") is None
+    assert life.cancel() is None and life.fail("late", DeliveryProblem.BLOCKED) is None
     assert life.returning
 
 

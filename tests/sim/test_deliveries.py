@@ -14,8 +14,9 @@ from pathlib import Path
 import pytest
 
 from coffeebot.config import load_robot_config
-from coffeebot.runtime import run_scenario
-from coffeebot.sim.scenario import load_scenario
+from coffeebot.scenario.report import ScenarioReport
+from coffeebot.scenario.run import run_scenario
+from coffeebot.scenario.spec import load_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
 BOARD = ROOT / "boards" / "coffeebot-v1.toml"
@@ -33,7 +34,7 @@ AT_THE_DOOR_MM = 100.0
 target is a 95th percentile, measured over many runs by bench/delivery.py."""
 
 
-async def run(name: str) -> dict:
+async def run(name: str) -> ScenarioReport:
     """The report of ``scenarios/NAME.toml`` run through the whole daemon."""
     config = load_robot_config(BOARD)
     scenario, plan = load_scenario(ROOT / "scenarios" / f"{name}.toml")
@@ -44,8 +45,8 @@ async def run(name: str) -> dict:
 @pytest.mark.parametrize("name", DELIVERIES)
 async def test_delivers_without_touching_anything(name: str) -> None:
     report = await run(name)
-    assert report["collisions"] == []
-    assert report["orders"], "the scenario placed no order"
-    for order in report["orders"]:
-        assert order["status"] == "delivered", f"{order['room']}: {order['detail']}"
-        assert order["stop_error_mm"] <= AT_THE_DOOR_MM, order["room"]
+    assert report.collisions == []
+    assert report.orders, "the scenario placed no order"
+    for order in report.orders:
+        assert order.status == "delivered", f"{order.room}: {order.detail}"
+        assert order.stop_error_mm is not None and order.stop_error_mm <= AT_THE_DOOR_MM, order.room

@@ -38,8 +38,10 @@ from coffeebot.messages import (
 )
 from coffeebot.modules.base import Module, ModuleContext
 from coffeebot.modules.door import DoorModule
-from coffeebot.runtime import Runtime, build_sim, serve
-from coffeebot.sim.simulation import SimSetup
+from coffeebot.runtime.assemble import Runtime
+from coffeebot.runtime.service import serve
+from coffeebot.runtime.sim import build_sim
+from coffeebot.sim.simulation import SimSetup, Simulation
 from coffeebot.sim.world.trace import hallway_pose, lane_wheel_speeds
 from manual_clock import ManualClock
 from traffic import play_through
@@ -66,16 +68,16 @@ DOOR_INPUTS = [RANGE_SCAN, CURRENT_STATE, ORDER_DISPATCH, MOVE_INSTRUCTION]
 
 
 class LaneDriver(Module):
-    """Drives down the hallway on ground truth (navigation and motion are not merged yet),
-    commanding the wheels through the motor topic, and ends the run at ``END_S_MM``."""
+    """Drives down the hallway on ground truth, so the pass depends on the door module alone
+    and not on navigation and motion, commanding the wheels through the motor topic, and ends
+    the run at ``END_S_MM``."""
 
     name = "test-driver"
     outputs = (MOTOR_COMMAND,)
 
-    def __init__(self, runtime: Runtime) -> None:
-        assert runtime.sim is not None
+    def __init__(self, runtime: Runtime, sim: Simulation) -> None:
         self.runtime = runtime
-        self.sim = runtime.sim
+        self.sim = sim
 
     async def run(self, ctx: ModuleContext) -> None:
         floor = PLAN.floor(2)
@@ -105,7 +107,11 @@ class LivePass:
 async def record_pass(path: Path) -> LivePass:
     floor = PLAN.floor(2)
     setup = SimSetup(floor=2, pose=hallway_pose(floor, START_S_MM, LANE_MM), seed=3, speed=SPEED)
-    async with build_sim(CONFIG, PLAN, setup, lambda rt: [LaneDriver(rt)], web=False) as runtime:
+
+    def drive(runtime: Runtime, sim: Simulation) -> list[Module]:
+        return [LaneDriver(runtime, sim)]
+
+    async with build_sim(CONFIG, PLAN, setup, drive, web=False) as (runtime, _):
         board = runtime.board
         async with Recorder(board, path, metadata={"robot": CONFIG.name}) as recorder:
             await serve(runtime)

@@ -6,15 +6,17 @@ long it took.
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
-from typing import Any
 
 import pytest
 
 from coffeebot.cli import main
-from coffeebot.config import ConfigError, load_robot_config
-from coffeebot.runtime import run_scenario
-from coffeebot.sim.scenario import load_scenario
+from coffeebot.config import load_robot_config
+from coffeebot.errors import ConfigError
+from coffeebot.scenario.report import FinalPose, ScenarioReport
+from coffeebot.scenario.run import run_scenario
+from coffeebot.scenario.spec import load_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
 BOARD = ROOT / "boards" / "coffeebot-v1.toml"
@@ -46,29 +48,34 @@ def write(tmp_path: Path, text: str) -> Path:
     return path
 
 
-async def run(path: Path) -> dict[str, Any]:
+async def run(path: Path) -> ScenarioReport:
     scenario, plan = load_scenario(path)
     return await run_scenario(load_robot_config(BOARD), scenario, plan, speed=SPEED)
 
 
 async def test_short_scenario_reports_an_undelivered_order(tmp_path: Path) -> None:
     report = await run(write(tmp_path, SHORT))
-    assert report["scenario"] == "short"
-    assert report["ended"] == "time limit"
-    assert report["sim_time_s"] >= 3
-    # Placed through the orders module and dispatched; with no navigation it never leaves.
-    [order] = report["orders"]
-    assert order["room"] == "205" and order["id"]
-    assert order["status"] == "preparing"
-    assert order["placed_at_s"] >= 0.5
-    assert order["delivered_at_s"] is None and order["stop_error_mm"] is None
+    assert report.scenario == "short"
+    assert report.ended == "time limit"
+    assert report.sim_time_s >= 3
+    # Placed through the orders module and dispatched; within 3 s no cup is loaded, so it
+    # never leaves.
+    [order] = report.orders
+    assert order.room == "205" and order.id
+    assert order.status == "preparing"
+    assert order.placed_at_s is not None and order.placed_at_s >= 0.5
+    assert order.delivered_at_s is None and order.stop_error_mm is None
     # An order still open at the time limit says so, and what motion was doing.
-    assert order["detail"].startswith("not ended within the 3 s time limit: motion ")
-    assert report["collisions"] == []
+    assert order.detail.startswith("not ended within the 3 s time limit: motion ")
+    assert report.collisions == []
     # Standing still 295 mm left of the axis: 850 - 295 - 255 mm to the left wall.
-    assert report["min_clearance_mm"] == 300
-    assert report["faults_injected"] == []
-    assert report["final_pose"] == {"floor": 2, "x_mm": 41500, "y_mm": 295, "heading_deg": 180.0}
+    assert report.min_clearance_mm == 300
+    assert report.faults_injected == []
+    assert report.final_pose == FinalPose(floor=2, x_mm=41500, y_mm=295, heading_deg=180.0)
+    # The report file's shape: the field names docs/scenarios.md shows.
+    written = json.loads(report.model_dump_json())
+    assert set(written) >= {"orders", "collisions", "safety_stop_log", "real_time_factor"}
+    assert written["final_pose"] == {"floor": 2, "x_mm": 41500, "y_mm": 295, "heading_deg": 180.0}
 
 
 async def test_sensor_nack_shows_as_a_safety_stop(tmp_path: Path) -> None:
@@ -85,11 +92,12 @@ to_s = 3
 """
     )
     report = await run(write(tmp_path, text))
-    [fault] = report["faults_injected"]
-    assert fault["fault"] == "sensor_nack" and 1 <= fault["t"] < fault["cleared_t"]
-    assert report["safety_stops"] >= 1
-    stop = report["safety_stop_log"][0]
-    assert stop["sensor"] == 3 and stop["t"] >= fault["t"]
+    [fault] = report.faults_injected
+    assert fault.fault == "sensor_nack"
+    assert fault.cleared_t is not None and 1 <= fault.t < fault.cleared_t
+    assert report.safety_stops >= 1
+    stop = report.safety_stop_log[0]
+    assert stop.sensor == 3 and stop.t >= fault.t
 
 
 @pytest.mark.parametrize(

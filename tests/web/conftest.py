@@ -72,7 +72,6 @@ def web_deps(board: Board, orders: OrdersModule, **fields: Any) -> WebDeps:
     config = WebConfig(drinks=sorted(RULES.drinks), max_body_bytes=2048)
     return WebDeps(
         board=board,
-        bus=board,
         orders=orders,
         rooms=ROOMS,
         config=config,
@@ -87,4 +86,6 @@ async def client(
     board: Board,
     orders: OrdersModule,
 ) -> TestClient:
-    return await aiohttp_client(create_app(web_deps(board, orders, modules=[orders])))
+    return await aiohttp_client(
+        create_app(web_deps(board, orders, modules=lambda: [orders]), board)
+    )

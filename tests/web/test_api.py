@@ -10,6 +10,7 @@ import pytest
 from aiohttp.test_utils import TestClient
 
 from coffeebot.board import Board
+from coffeebot.errors import OrderError
 from coffeebot.messages import (
     DELIVERY_STATUS,
     ESTOP,
@@ -22,6 +23,8 @@ from coffeebot.messages import (
     ReadingStatus,
 )
 from coffeebot.modules.orders import OrdersModule
+from coffeebot.orders import OrderNotFound, OrdersUnavailable
+from coffeebot.store import NewOrder, Order
 from coffeebot.web import create_app
 
 from .conftest import TOKEN, web_deps
@@ -152,7 +155,7 @@ async def test_no_configured_token_refuses_everyone(
     aiohttp_client: Any, board: Board, orders: OrdersModule
 ) -> None:
     deps = dataclasses.replace(web_deps(board, orders), operator_token=None)
-    client = await aiohttp_client(create_app(deps))
+    client = await aiohttp_client(create_app(deps, board))
     response = await client.post("/api/estop", json={"engaged": True}, headers=OPERATOR)
     assert response.status == 401
     assert board.latest(ESTOP) is None
@@ -304,3 +307,34 @@ async def test_board_snapshot_and_stream(client: TestClient, board: Board) -> No
             if line.startswith(b"data: "):
                 assert b"tof/scan" in line
                 break
+
+
+class QueueDown:
+    """Orders kept somewhere that cannot be reached now (a fleet's dispatcher, restarting):
+    the web needs nothing but the orders protocol."""
+
+    async def place(self, new: NewOrder, client: str) -> Order:
+        raise OrdersUnavailable("the dispatcher is restarting")
+
+    async def get(self, order_id: str) -> Order:
+        raise OrderNotFound(f"no order {order_id!r}")
+
+    async def cancel(self, order_id: str, detail: str = "") -> Order:
+        raise OrderError(f"order {order_id!r} is out")
+
+    async def active(self) -> list[Order]:
+        return []
+
+
+async def test_order_errors_become_http_answers_in_one_place(
+    aiohttp_client: Any, board: Board, orders: OrdersModule
+) -> None:
+    deps = dataclasses.replace(web_deps(board, orders), orders=QueueDown())
+    client = await aiohttp_client(create_app(deps, board))
+    placed = await client.post("/api/orders", json={"room": "210", "drink": "tea", "name": "A"})
+    assert placed.status == 503
+    assert (await placed.json())["error"] == "the dispatcher is restarting"
+    assert (await client.get("/api/orders/abc")).status == 404
+    assert (await client.get("/orders/abc")).status == 404  # the page, not JSON
+    listed = await client.get("/api/orders", headers=OPERATOR)
+    assert listed.status == 200 and await listed.json() == []

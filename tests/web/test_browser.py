@@ -2,7 +2,7 @@
 
 The daemon runs the orders and web modules on a real port; a small stand-in robot moves
 along the hallway publishing scans, and the tests play navigation by publishing delivery
-updates, as the simulated robot will once it is merged.
+updates (``test_browser_sim.py`` runs the whole simulated robot instead).
 """
 
 from __future__ import annotations
@@ -33,9 +33,8 @@ from coffeebot.messages import (
     ReadingStatus,
 )
 from coffeebot.modules.orders import OrdersModule
-from coffeebot.modules.web import WebModule
 from coffeebot.store import OrderStore
-from coffeebot.web import WebDeps
+from coffeebot.web import WebDeps, WebModule
 from coffeebot.web.livemap import MapPose
 
 from .conftest import ROOMS, RULES, TOKEN
@@ -107,12 +106,11 @@ async def served(tmp_path: Path) -> AsyncIterator[Served]:
     web = WebModule(
         WebDeps(
             board=board,
-            bus=board,
             orders=orders,
             rooms=ROOMS,
             config=WebConfig(port=0, drinks=sorted(RULES.drinks), stream_period_s=0.2),
             operator_token=TOKEN,
-            modules=[orders],
+            modules=lambda: daemon.modules,
             floor_svg=lambda floor: FLOOR_2 if floor == 2 else None,
             poses=robot.poses,
             sensors=robot_config.tof.sensors,

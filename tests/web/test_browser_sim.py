@@ -19,9 +19,11 @@ import pytest
 
 from coffeebot.config import load_robot_config
 from coffeebot.floorplan import load_floorplan
-from coffeebot.modules.web import WebModule
-from coffeebot.runtime import Runtime, build_sim, serve
+from coffeebot.runtime.assemble import Runtime
+from coffeebot.runtime.service import serve
+from coffeebot.runtime.sim import build_sim
 from coffeebot.sim.simulation import demo_setup
+from coffeebot.web import WebModule
 
 from .test_browser import CHROMIUM, CHROMIUM_ARGS, REPO, SCREENSHOTS
 
@@ -36,7 +38,7 @@ async def robot(monkeypatch: pytest.MonkeyPatch) -> AsyncIterator[Runtime]:
     )
     monkeypatch.setenv(config.web.operator_token_env, TOKEN)
     plan = load_floorplan(REPO / "floorplans" / "cs-building.toml")
-    async with build_sim(config, plan, demo_setup(plan, speed=2.0), web=True) as runtime:
+    async with build_sim(config, plan, demo_setup(plan, speed=2.0), web=True) as (runtime, _):
         serving = asyncio.create_task(serve(runtime))
         web = runtime.module("web")
         assert isinstance(web, WebModule)

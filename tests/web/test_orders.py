@@ -9,6 +9,7 @@ import pytest
 
 from coffeebot.board import Board, Subscription
 from coffeebot.daemon import Daemon
+from coffeebot.errors import OrderError
 from coffeebot.messages import (
     ALL_TOPICS,
     DELIVERY_STATUS,
@@ -18,7 +19,8 @@ from coffeebot.messages import (
     OrderStatus,
     OrderUpdate,
 )
-from coffeebot.modules.orders import OrderError, OrdersModule, OrdersUnavailable
+from coffeebot.modules.orders import OrdersModule
+from coffeebot.orders import OrdersUnavailable
 from coffeebot.store import OrderStore
 from logged import events
 

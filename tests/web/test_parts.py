@@ -8,8 +8,8 @@ from coffeebot.board import Board
 from coffeebot.config import TofSensorConfig
 from coffeebot.messages import ALL_TOPICS, RANGE_SCAN, RangeReading, RangeScan, ReadingStatus
 from coffeebot.modules.orders import OrdersModule
-from coffeebot.modules.web import WebModule
 from coffeebot.store import OrderStore
+from coffeebot.web import WebModule
 from coffeebot.web.context import RateLimiter
 from coffeebot.web.graph import module_graph
 from coffeebot.web.livemap import NO_TARGET_RAY_MM, MapPose, RayShape, RobotShape, map_frame

@@ -19,16 +19,13 @@ from pydantic import BaseModel
 from coffeebot.board.stats import BoardSnapshot, SubscriberStats, TopicStats
 from coffeebot.board.topic import Delivery, Envelope, Topic
 from coffeebot.clock import Clock, MonotonicClock
+from coffeebot.errors import BoardError
 
 log = logging.getLogger(__name__)
 
 M = TypeVar("M", bound=BaseModel)
 
 RATE_WINDOW_S = 5.0
-
-
-class BoardError(Exception):
-    """Misuse of the board: unknown topic, wrong message type, duplicate declaration."""
 
 
 class BoardOverflowError(BoardError):
@@ -239,11 +236,10 @@ class Board:
         try:
             if timeout is None:
                 return await waiter
-            timeout_task = asyncio.ensure_future(self.clock.sleep(timeout))
+            timeout_task: asyncio.Future[None] = asyncio.ensure_future(self.clock.sleep(timeout))
+            racing: set[asyncio.Future[Any]] = {waiter, timeout_task}
             try:
-                done, _ = await asyncio.wait(
-                    {waiter, timeout_task}, return_when=asyncio.FIRST_COMPLETED
-                )
+                done, _ = await asyncio.wait(racing, return_when=asyncio.FIRST_COMPLETED)
             finally:
                 timeout_task.cancel()
             if waiter in done:

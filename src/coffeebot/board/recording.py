@@ -16,11 +16,12 @@ import logging
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Generator, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, BinaryIO
 
+from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from mcap.writer import Writer
 from pydantic import BaseModel, ValidationError
@@ -28,6 +29,7 @@ from pydantic import BaseModel, ValidationError
 from coffeebot import __version__
 from coffeebot.board.board import Board, BoardOverflowError, Subscription
 from coffeebot.board.topic import Envelope, Topic
+from coffeebot.errors import BoardError
 from coffeebot.logs import Event, log_event
 
 log = logging.getLogger(__name__)
@@ -43,7 +45,7 @@ WRITE_PERIOD_S = 0.05
 """The writer thread wakes this often rather than on every message (see :class:`Recorder`)."""
 
 
-class RecordingError(ValueError):
+class RecordingError(BoardError, ValueError):
     """A recording that cannot be read or replayed, with the reason."""
 
 
@@ -181,7 +183,7 @@ class Recorder:
                 if closing:
                     break
             if self.error is None:
-                writer.finish()
+                writer.finish()  # type: ignore[no-untyped-call]  # mcap's Writer is untyped
         except Exception as exc:
             self._fail(exc)
         finally:
@@ -250,7 +252,7 @@ class RecordedMessage:
 
 def read_recording(
     path: str | Path, topics: Iterable[Topic[Any]], only: Iterable[str] | None = None
-) -> Iterator[RecordedMessage]:
+) -> Generator[RecordedMessage]:
     """Messages in time order, each validated into the model of its topic in ``topics``.
 
     Channels whose topic is not in ``topics`` are skipped (a recording may be older or newer
@@ -259,19 +261,21 @@ def read_recording(
     models = {t.name: t.model for t in topics}
     wanted = None if only is None else list(only)
     with Path(path).open("rb") as stream:
-        reader = make_reader(stream)
-        for _schema, channel, message in reader.iter_messages(topics=wanted):
-            model = models.get(channel.topic)
-            if model is None:
-                continue
-            try:
-                msg = model.model_validate_json(message.data)
-            except ValidationError as exc:
-                raise RecordingError(
-                    f"{path}: message {message.sequence} on {channel.topic!r} does not fit "
-                    f"{model.__name__}: {exc}"
-                ) from None
-            yield RecordedMessage(channel.topic, message.sequence, message.log_time / 1e9, msg)
+        try:
+            for _schema, channel, message in make_reader(stream).iter_messages(topics=wanted):
+                model = models.get(channel.topic)
+                if model is None:
+                    continue
+                try:
+                    msg = model.model_validate_json(message.data)
+                except ValidationError as exc:
+                    raise RecordingError(
+                        f"{path}: message {message.sequence} on {channel.topic!r} does not fit "
+                        f"{model.__name__}: {exc}"
+                    ) from None
+                yield RecordedMessage(channel.topic, message.sequence, message.log_time / 1e9, msg)
+        except McapError as exc:
+            raise RecordingError(f"{path}: not a readable MCAP file: {exc}") from None
 
 
 @dataclass
@@ -367,8 +371,8 @@ class RecordingInfo(BaseModel):
 def recording_info(path: str | Path) -> RecordingInfo:
     """Topics, counts and time span from the file's summary section."""
     with Path(path).open("rb") as stream:
-        reader = make_reader(stream)
         try:
+            reader = make_reader(stream)
             summary = reader.get_summary()
             metadata = {
                 k: v

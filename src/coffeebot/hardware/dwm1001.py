@@ -22,14 +22,13 @@ the shell, so :meth:`Dwm1001.start` does not guess the tag's state: it resets th
 
 from __future__ import annotations
 
-import math
+import re
 from dataclasses import dataclass
 
 from coffeebot.hardware.errors import DeviceError
 from coffeebot.hardware.serial_port import LineReader, SerialPort
 from coffeebot.messages import AnchorRange, UwbFix
 
-BAUDRATE = 115200
 PROMPT = b"dwm> "
 ENTER_SHELL = b"\r\r"  # two Enters within one second leave TLV mode
 TLV_UNKNOWN_COMMAND = b"\x40\x01\x01"  # what TLV mode answers to text
@@ -43,21 +42,29 @@ class LecReport:
     fix: UwbFix | None
 
 
-def _metres(field: str) -> float:
-    value = float(field)
-    if not math.isfinite(value):
-        raise ValueError(f"not a finite number: {field!r}")
-    return value * 1000.0
+METRES = re.compile(r"(-?)(\d+)(?:\.(\d{1,3}))?")
+"""How the shell prints a coordinate or a range: metres with (at most millimetre) decimals."""
 
 
-def _position(fields: list[str]) -> tuple[float, float, float, int]:
+def _millimetres(field: str) -> int:
+    """The decimal text of metres as exact integer millimetres: "4.02" is 4020, where
+    ``float("4.02") * 1000`` is 4019.9999999999995."""
+    match = METRES.fullmatch(field.strip())
+    if match is None:
+        raise ValueError(f"not a distance in metres: {field!r}")
+    sign, whole, decimals = match.groups()
+    mm = int(whole) * 1000 + int((decimals or "").ljust(3, "0"))
+    return -mm if sign else mm
+
+
+def _position(fields: list[str]) -> tuple[int, int, int, int]:
     """``x,y,z,qf`` in metres and percent."""
     if len(fields) != 4:
         raise ValueError(f"POS needs x,y,z,qf, got {len(fields)} fields")
     qf = int(fields[3])
     if not 0 <= qf <= 100:
         raise ValueError(f"quality factor {qf} outside 0..100")
-    return _metres(fields[0]), _metres(fields[1]), _metres(fields[2]), qf
+    return _millimetres(fields[0]), _millimetres(fields[1]), _millimetres(fields[2]), qf
 
 
 def parse_lec(line: str) -> LecReport:
@@ -76,17 +83,17 @@ def parse_lec(line: str) -> LecReport:
         raise ValueError(f"DIST,{count} with only {len(fields)} fields")
     anchors = []
     for i in range(count):
-        tag, anchor_id, x, y, z, d = fields[2 + 6 * i : 8 + 6 * i]
+        tag, anchor_id, ax, ay, az, ad = fields[2 + 6 * i : 8 + 6 * i]
         if tag != f"AN{i}" or len(anchor_id) != 4:
             raise ValueError(f"anchor block {i} malformed: {tag},{anchor_id}")
         int(anchor_id, 16)
         anchors.append(
             AnchorRange(
                 anchor_id=anchor_id,
-                x_mm=_metres(x),
-                y_mm=_metres(y),
-                z_mm=_metres(z),
-                distance_mm=_metres(d),
+                x_mm=_millimetres(ax),
+                y_mm=_millimetres(ay),
+                z_mm=_millimetres(az),
+                distance_mm=_millimetres(ad),
             )
         )
     rest = fields[anchors_end:]

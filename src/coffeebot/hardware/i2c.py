@@ -7,6 +7,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
 
 if TYPE_CHECKING:
@@ -30,6 +31,18 @@ def open_i2c_bus(bus: int) -> I2CBus:
     from smbus2 import SMBus
 
     return SMBus(bus)
+
+
+def kernel_bus_hz(bus: int, sys: Path = Path("/sys")) -> int | None:
+    """The clock the kernel runs ``/dev/i2c-<bus>`` at, from the device tree (the Pi's
+    ``dtparam=i2c_arm_baudrate``): a big-endian 32-bit ``clock-frequency``. None where the
+    kernel does not say (no device tree, no such bus)."""
+    path = sys / "class" / "i2c-adapter" / f"i2c-{bus}" / "of_node" / "clock-frequency"
+    try:
+        raw = path.read_bytes()
+    except OSError:
+        return None
+    return int.from_bytes(raw[:4], "big") if len(raw) >= 4 else None
 
 
 @dataclass

@@ -7,7 +7,6 @@ from dataclasses import dataclass
 from coffeebot.hardware.serial_port import LineReader, SerialPort
 from coffeebot.messages import Odometry
 
-BAUDRATE = 115200
 WATCHDOG_MS = 200
 MAX_LINE = 80
 WATCHDOG_FLAG = 0x01

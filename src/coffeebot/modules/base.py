@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import logging
 from abc import ABC, abstractmethod
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, ClassVar, TypeVar
 
 from pydantic import BaseModel
@@ -69,7 +69,6 @@ class ModuleContext:
     board: ModuleBoard
     clock: Clock
     log: logging.Logger
-    extras: dict[str, Any] = field(default_factory=dict)
 
 
 class Module(ABC):

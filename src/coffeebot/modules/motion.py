@@ -38,13 +38,13 @@ from coffeebot.messages import (
     MotionStatus,
     MotorCommand,
     SafetyState,
+    StopCause,
 )
 from coffeebot.modules.base import Module, ModuleBoard, ModuleContext
 from coffeebot.navigation.control import wheel_speeds
 from coffeebot.navigation.costmap import Footprint, LocalCostmap
 from coffeebot.navigation.motion import MotionController
 
-COLLISION_MODULE = "collision"
 MIN_TURN_DPS = 1.0
 """Below this a turn on the spot under a front stop is not worth sending: stand still."""
 UNSAFE_HEALTH = (HealthStatus.FAILED, HealthStatus.STOPPED, HealthStatus.RESTARTING)
@@ -56,6 +56,8 @@ class Gate:
 
     speed_limit_mm_s: float
     reason: str
+    cause: StopCause | None = None
+    """Why it stops the robot; None when it lets the robot go (at a limit, or clear)."""
     may_rotate: bool = False
     """A front stop that still allows turning on the spot (the collision verdict's call)."""
     may_creep_ahead: bool = False
@@ -75,18 +77,21 @@ def safety_gate(
 ) -> Gate:
     """Stop on any doubt; otherwise the verdict's speed limit."""
     if estop is not None and estop.engaged:
-        return Gate(0.0, f"e-stop engaged by {estop.source}")
+        return Gate(0.0, f"e-stop engaged by {estop.source}", StopCause.ESTOP)
     if collision_health in UNSAFE_HEALTH:
-        return Gate(0.0, f"collision module {collision_health.value}")
+        return Gate(
+            0.0, f"collision module {collision_health.value}", StopCause.COLLISION_MODULE_DOWN
+        )
     if collision is None or collision_age_s is None:
-        return Gate(0.0, "no collision verdict yet")
+        return Gate(0.0, "no collision verdict yet", StopCause.NO_VERDICT)
     if collision_age_s > stale_after_s:
-        return Gate(0.0, f"collision verdict {collision_age_s:.2f} s old")
+        return Gate(0.0, f"collision verdict {collision_age_s:.2f} s old", StopCause.STALE_VERDICT)
     verdict = collision.msg
     if verdict.state is SafetyState.STOP:
         return Gate(
             0.0,
             f"collision stop: {verdict.reason}",
+            StopCause.COLLISION_STOP,
             may_rotate=verdict.may_rotate,
             may_creep_ahead=verdict.may_creep_ahead,
         )
@@ -133,10 +138,11 @@ class MotionModule(Module):
         board.publish(MOTOR_COMMAND, MotorCommand(left_mm_s=0.0, right_mm_s=0.0, reason=reason))
 
     async def _watch_health(self, ctx: ModuleContext) -> None:
-        with ctx.board.subscribe(HEALTH) as health:
-            async for envelope in health:
-                if envelope.msg.module == COLLISION_MODULE and envelope.msg.component is None:
-                    self.collision_health = envelope.msg.status
+        with ctx.board.subscribe(HEALTH) as reports:
+            async for envelope in reports:
+                health = envelope.msg
+                if COLLISION.name in health.publishes and health.component is None:
+                    self.collision_health = health.status
 
     async def _map(self, ctx: ModuleContext) -> None:
         """Every scan into the costmap, placed with the freshest pose."""
@@ -158,6 +164,9 @@ class MotionModule(Module):
                 )
 
     def gate(self, ctx: ModuleContext) -> Gate:
+        """The safety gate from the freshest state on the board: made once per command."""
+        if self._stopping:
+            return Gate(0.0, "shutting down", StopCause.SHUTTING_DOWN)
         estop = ctx.board.latest(ESTOP)
         gate = safety_gate(
             ctx.board.latest(COLLISION),
@@ -173,25 +182,24 @@ class MotionModule(Module):
             or age > self.cfg.stale_pose_s
             or not state.msg.pose.initialised
         ):
-            return Gate(0.0, "no fresh pose")
+            return Gate(0.0, "no fresh pose", StopCause.NO_FRESH_POSE)
         return gate
 
-    def control(self, ctx: ModuleContext, dt: float) -> None:
-        """One period: plan, gate, publish the command and the status."""
+    def control(self, ctx: ModuleContext, dt: float, gate: Gate) -> None:
+        """One period under ``gate``: plan, publish the command and the status."""
         now = ctx.clock.now()
-        gate = self.gate(ctx)
         instruction = ctx.board.latest(MOVE_INSTRUCTION)
         ins = None if instruction is None else instruction.msg
         state = ctx.board.latest(CURRENT_STATE)
-        if self._stopping:
-            gate = Gate(0.0, "shutting down")
         if gate.stop and gate.may_rotate and state is not None:
             # Held by something ahead, but turning on the spot is allowed: the turn the
             # controller wants (into a door, away from a jamb, round a box) may clear it.
             command = self.controller.step(ins, state.msg.pose, now, dt, 0.0)
             if abs(command.yaw_rate_dps) >= MIN_TURN_DPS:
                 reason = f"turning on the spot; {gate.reason}"
-                status = self.controller.safety_status(command.status.instruction_id, now, reason)
+                status = self.controller.safety_status(
+                    command.status.instruction_id, now, reason, gate.cause
+                )
                 self._send(ctx.board, 0.0, command.yaw_rate_dps, reason, status)
                 return
         if gate.stop and gate.may_creep_ahead and state is not None and ins is not None:
@@ -200,7 +208,9 @@ class MotionModule(Module):
             command = self.controller.step(ins, state.msg.pose, now, dt, limit)
             if command.speed_mm_s > 0:
                 reason = f"creeping straight ahead; {gate.reason}"
-                status = self.controller.safety_status(command.status.instruction_id, now, reason)
+                status = self.controller.safety_status(
+                    command.status.instruction_id, now, reason, gate.cause
+                )
                 self._send(ctx.board, command.speed_mm_s, 0.0, reason, status)
                 return
         if gate.stop or state is None:
@@ -208,7 +218,9 @@ class MotionModule(Module):
             self._stop(ctx.board, gate.reason)
             ctx.board.publish(
                 MOTION_STATUS,
-                self.controller.safety_status(-1 if ins is None else ins.id, now, gate.reason),
+                self.controller.safety_status(
+                    -1 if ins is None else ins.id, now, gate.reason, gate.cause
+                ),
             )
             return
         command = self.controller.step(ins, state.msg.pose, now, dt, gate.speed_limit_mm_s)
@@ -252,8 +264,9 @@ class MotionModule(Module):
             with contextlib.suppress(TimeoutError):
                 await ctx.board.next(COLLISION, timeout=self.cfg.period_s)
             now = ctx.clock.now()
-            if now - last >= self.cfg.period_s or self.gate(ctx).stop:
-                self.control(ctx, max(0.0, now - last))
+            gate = self.gate(ctx)
+            if now - last >= self.cfg.period_s or gate.stop:
+                self.control(ctx, max(0.0, now - last), gate)
                 last = now
 
     async def shutdown(self) -> None:

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-from collections.abc import Callable
 from dataclasses import dataclass
 
 from coffeebot.config import MotorConfig
@@ -30,25 +29,23 @@ from coffeebot.messages import (
     MotorCommand,
     Odometry,
 )
-from coffeebot.modules.backoff import Backoff
 from coffeebot.modules.base import ModuleContext
-from coffeebot.modules.serial_device import CONNECTED, SerialDeviceModule
+from coffeebot.modules.serial_device import LinkCounters, Opener, SerialDeviceModule
 
 RESET = "reset"
 FRESH, STALE = "fresh", "stale"
 
 
 @dataclass
-class MotorCounters:
+class MotorCounters(LinkCounters):
     telemetry: int = 0
     garbage: int = 0
     controller_boots: int = 0
     commands: int = 0
     stale_stops: int = 0
-    failures: int = 0
 
 
-class MotorDriver(SerialDeviceModule):
+class MotorDriver(SerialDeviceModule[MotorCounters]):
     name = "motor"
     device = "motor controller"
     inputs = (MOTOR_COMMAND,)
@@ -64,67 +61,47 @@ class MotorDriver(SerialDeviceModule):
         command_timeout_s: float = 0.25,
         read_timeout_s: float = 0.05,
         backoff_s: tuple[float, float] = (0.25, 4.0),
-        opener: Callable[[str, int, float], SerialPort] = open_port,
+        opener: Opener = open_port,
     ) -> None:
         if keepalive_s * 2 > motor.watchdog_ms / 1000.0:
             raise ValueError("keepalive must be at most half the controller watchdog")
-        self.motor = motor
-        self.port = motor.port
+        super().__init__(
+            motor,
+            MotorCounters(),
+            read_timeout_s=read_timeout_s,
+            backoff_s=backoff_s,
+            opener=opener,
+        )
         self.keepalive_s = keepalive_s
         self.command_timeout_s = command_timeout_s
-        self.read_timeout_s = read_timeout_s
-        self.backoff_s = backoff_s
-        self.opener = opener
-        self.counters = MotorCounters()
         self._controller: MotorController | None = None
         self._writer: DeviceWorker | None = None
+        self._commands: Transitions | None = None
         self._stopping = False
 
     async def run(self, ctx: ModuleContext) -> None:
-        reader, writer = DeviceWorker("motor-rx"), DeviceWorker("motor-tx")
-        backoff = Backoff(*self.backoff_s)
-        link = Transitions(ctx.log, initial={self.motor.port: CONNECTED})
-        commands = Transitions(ctx.log, initial={MOTOR_COMMAND.name: FRESH})
+        """The connection loop, with a second thread for commands: pyserial allows one reader
+        and one writer at once, so commands keep flowing while a read waits."""
+        self._writer = DeviceWorker("motor-tx")
+        self._commands = Transitions(ctx.log, initial={MOTOR_COMMAND.name: FRESH})
         try:
-            while True:
-                try:
-                    port = await reader.call(
-                        self.opener, self.motor.port, self.motor.baudrate, self.read_timeout_s
-                    )
-                except OSError as exc:
-                    await self._failed(ctx, exc, backoff, link)
-                    continue
-                ctrl = MotorController(port)
-                self._controller, self._writer = ctrl, writer
-                try:
-                    await self._connected(ctx, reader, writer, ctrl, backoff, link, commands)
-                except OSError as exc:
-                    await self._failed(ctx, exc, backoff, link)
-                finally:
-                    self._controller = None
-                    await reader.call(port.close)
+            await super().run(ctx)
         finally:
-            reader.close()
-            writer.close()
+            self._writer.close()
 
-    async def _connected(
-        self,
-        ctx: ModuleContext,
-        reader: DeviceWorker,
-        writer: DeviceWorker,
-        ctrl: MotorController,
-        backoff: Backoff,
-        link: Transitions,
-        commands: Transitions,
-    ) -> None:
+    async def talk(self, ctx: ModuleContext, port: SerialPort, io: DeviceWorker) -> str:
         """Run the telemetry and command loops until either fails; re-raise its error."""
+        assert self._writer is not None and self._commands is not None, "only called from run()"
+        ctrl = MotorController(port)
+        self._controller = ctrl
         tasks = [
-            asyncio.create_task(self._read_loop(ctx, reader, ctrl, backoff, link)),
-            asyncio.create_task(self._write_loop(ctx, writer, ctrl, commands)),
+            asyncio.create_task(self._read_loop(ctx, io, ctrl)),
+            asyncio.create_task(self._write_loop(ctx, self._writer, ctrl, self._commands)),
         ]
         try:
             done, _ = await asyncio.wait(tasks, return_when=asyncio.FIRST_EXCEPTION)
         finally:
+            self._controller = None
             for task in tasks:
                 task.cancel()
             for task in tasks:
@@ -132,14 +109,10 @@ class MotorDriver(SerialDeviceModule):
                     await task
         for task in done:
             task.result()
+        return "telemetry and commands ended"
 
     async def _read_loop(
-        self,
-        ctx: ModuleContext,
-        reader: DeviceWorker,
-        ctrl: MotorController,
-        backoff: Backoff,
-        link: Transitions,
+        self, ctx: ModuleContext, reader: DeviceWorker, ctrl: MotorController
     ) -> None:
         healthy = False
         while True:
@@ -156,20 +129,17 @@ class MotorDriver(SerialDeviceModule):
                 ctx.board.publish(ODOMETRY, event)
                 if not healthy:
                     healthy = True
-                    backoff.reset()
-                    link.update(self.motor.port, CONNECTED, Event.RECONNECT, "telemetry resumed")
-                    self._health(ctx, HealthStatus.RUNNING, f"telemetry on {self.motor.port}")
+                    self.connected(ctx, "telemetry resumed", f"telemetry on {self.port}")
             elif isinstance(event, Boot):
                 # Counters restarted at zero: consumers must not difference across this.
                 self.counters.controller_boots += 1
                 if healthy:  # a boot line right after opening the port is the normal start
-                    link.update(
-                        self.motor.port,
+                    self.link(
                         RESET,
                         Event.FAULT,
                         f"motor controller reset while running (firmware {event.firmware})",
                     )
-                self._health(ctx, HealthStatus.DEGRADED, f"controller booted ({event.firmware})")
+                self.health(ctx, HealthStatus.DEGRADED, f"controller booted ({event.firmware})")
                 healthy = False
 
     async def _write_loop(

@@ -22,6 +22,7 @@ from collections.abc import Callable
 
 from coffeebot.board import Subscription
 from coffeebot.config import RobotConfig
+from coffeebot.errors import DeliveryError
 from coffeebot.floorplan import FloorPlan
 from coffeebot.messages import (
     CURRENT_STATE,
@@ -32,6 +33,7 @@ from coffeebot.messages import (
     MOVE_INSTRUCTION,
     OPERATOR_EVENT,
     ORDER_DISPATCH,
+    DeliveryProblem,
     DeliveryUpdate,
     ElevatorRequest,
     ElevatorState,
@@ -55,8 +57,12 @@ PROGRESS_MM = 100.0
 something without getting on is as blocked as standing still."""
 
 
-class DeliveryAborted(Exception):
+class DeliveryAborted(DeliveryError):
     """The delivery cannot go on; the message is the reason the customer sees."""
+
+    def __init__(self, reason: str, problem: DeliveryProblem) -> None:
+        super().__init__(reason)
+        self.problem = problem
 
 
 class NavigationModule(Module):
@@ -140,7 +146,9 @@ class NavigationModule(Module):
             latest = ctx.board.latest(MOTION_STATUS)
             if latest is None or latest.msg.instruction_id != ident:
                 if ctx.clock.now() - heard > self.nav.blocked_give_up_s:
-                    raise DeliveryAborted("the motion module does not answer")
+                    raise DeliveryAborted(
+                        "the motion module does not answer", DeliveryProblem.MOTION_SILENT
+                    )
                 continue
             heard = ctx.clock.now()
             status = latest.msg
@@ -157,21 +165,25 @@ class NavigationModule(Module):
                 why = f"no progress for {stalled:.0f} s ({status.detail})"
             stuck_s = max(held, stalled)
             if stuck_s >= self.nav.blocked_give_up_s:
-                raise DeliveryAborted(f"blocked for {stuck_s:.0f} s: {why}")
+                raise DeliveryAborted(
+                    f"blocked for {stuck_s:.0f} s: {why}", DeliveryProblem.BLOCKED
+                )
             stuck = stuck_s >= self.nav.blocked_report_s
             if stuck and not reported_blocked:
                 reported_blocked = True
-                self._progress(ctx, f"blocked: {why}")
+                self._progress(ctx, f"blocked: {why}", DeliveryProblem.BLOCKED)
                 if self.nav.on_blocked == "return":
-                    raise DeliveryAborted(f"blocked: {why}")
+                    raise DeliveryAborted(f"blocked: {why}", DeliveryProblem.BLOCKED)
             elif not stuck and reported_blocked:
                 reported_blocked = False
                 self._progress(ctx, f"on the way again: {move.instruction.detail}")
 
-    def _progress(self, ctx: ModuleContext, detail: str) -> None:
+    def _progress(
+        self, ctx: ModuleContext, detail: str, problem: DeliveryProblem | None = None
+    ) -> None:
         life = self._life
         if life is not None and not life.final:
-            self._report(ctx, life.progress(detail))
+            self._report(ctx, life.progress(detail, problem))
 
     async def _drive(self, ctx: ModuleContext, route: Route) -> None:
         for step in route.steps:
@@ -208,11 +220,15 @@ class NavigationModule(Module):
             self._report(
                 ctx,
                 life.waiting_for_elevator(
-                    f"the elevator does not answer ({what}); an operator is asked to confirm"
+                    f"the elevator does not answer ({what}); an operator is asked to confirm",
+                    DeliveryProblem.ELEVATOR,
                 ),
             )
         if not await self._wait_for(ctx, confirmed.is_set, cfg.operator_timeout_s):
-            raise DeliveryAborted(f"the elevator did not answer ({what}) and nobody confirmed it")
+            raise DeliveryAborted(
+                f"the elevator did not answer ({what}) and nobody confirmed it",
+                DeliveryProblem.ELEVATOR,
+            )
 
     async def _ride(self, ctx: ModuleContext, ride: ElevatorRide) -> None:
         cfg = self.nav.elevator
@@ -247,7 +263,10 @@ class NavigationModule(Module):
             cfg.call_timeout_s,
         )
         if not on_floor:
-            raise DeliveryAborted(f"the elevator opened but the robot cannot confirm floor {there}")
+            raise DeliveryAborted(
+                f"the elevator opened but the robot cannot confirm floor {there}",
+                DeliveryProblem.ELEVATOR,
+            )
         self._progress(ctx, f"on floor {there}")
         for move in ride.exit:
             await self._move(ctx, move)
@@ -258,7 +277,7 @@ class NavigationModule(Module):
     def _route_to(self, ctx: ModuleContext, room: str | None) -> Route:
         pose = self._pose(ctx)
         if pose is None:
-            raise DeliveryAborted("the robot does not know where it is")
+            raise DeliveryAborted("the robot does not know where it is", DeliveryProblem.LOST)
         goal = self.planner.base if room is None else self.planner.door_place(room)
         s, leave = self.planner.where(pose.floor, pose.x_mm, pose.y_mm)
         return self.planner.route(pose.floor, s, goal, leave)
@@ -268,7 +287,11 @@ class NavigationModule(Module):
         self._report(ctx, life.ready_for_cup())
         if not await self._wait_for(ctx, self._event("cup_loaded").is_set, nav.loading_timeout_s):
             self._report(
-                ctx, life.fail(f"the cup was not loaded within {nav.loading_timeout_s:.0f} s")
+                ctx,
+                life.fail(
+                    f"the cup was not loaded within {nav.loading_timeout_s:.0f} s",
+                    DeliveryProblem.CUP_NOT_LOADED,
+                ),
             )
             return
         route = self._route_to(ctx, life.room)  # raises before leaving if the room is unknown
@@ -289,7 +312,8 @@ class NavigationModule(Module):
                 ctx,
                 life.fail(
                     f"nobody picked the cup up within {nav.pickup_timeout_s:.0f} s; "
-                    "taking it back to the tea room"
+                    "taking it back to the tea room",
+                    DeliveryProblem.NOT_PICKED_UP,
                 ),
             )
 
@@ -301,7 +325,12 @@ class NavigationModule(Module):
         try:
             self.planner.door_place(dispatch.room)
         except KeyError:
-            self._report(ctx, life.fail(f"no room {dispatch.room!r} on the floor plan"))
+            self._report(
+                ctx,
+                life.fail(
+                    f"no room {dispatch.room!r} on the floor plan", DeliveryProblem.UNKNOWN_ROOM
+                ),
+            )
             return
         self._task = asyncio.create_task(self._serve(ctx, life))
         try:
@@ -310,7 +339,7 @@ class NavigationModule(Module):
             if not life.final:  # this module is being cancelled, not the delivery
                 raise
         except DeliveryAborted as exc:
-            self._report(ctx, life.fail(str(exc)))
+            self._report(ctx, life.fail(str(exc), exc.problem))
         finally:
             self._task = None
         if life.left_base:

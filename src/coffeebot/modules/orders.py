@@ -1,11 +1,12 @@
 """The order queue: first come, first served, one delivery at a time, every change stored first.
 
-The web calls :meth:`OrdersModule.place` and :meth:`OrdersModule.cancel` directly because a
-customer needs an answer (the new order's id, or why it cannot be cancelled). Everything else
-arrives over the board: navigation reports progress on ``DELIVERY_STATUS``. Each change is
-committed to the store and only then announced on ``ORDER_UPDATE``; the head of the queue is
-handed to navigation on ``ORDER_DISPATCH`` (navigation should also read ``latest`` of that topic
-when it starts, in case the dispatch was published before it subscribed).
+The web calls it through the orders protocol (:class:`~coffeebot.orders.Orders`: place, get,
+cancel, active) because a customer needs an answer (the new order's id, or why it cannot be
+cancelled). Everything else arrives over the board: navigation reports progress on
+``DELIVERY_STATUS``. Each change is committed to the store and only then announced on
+``ORDER_UPDATE``; the head of the queue is handed to navigation on ``ORDER_DISPATCH``
+(navigation should also read ``latest`` of that topic when it starts, in case the dispatch
+was published before it subscribed).
 
 At the first start after a daemon restart, orders that were in flight cannot simply carry on:
 the process that knew where the robot and the cup were is gone. An order still being prepared
@@ -22,6 +23,7 @@ import asyncio
 import logging
 
 from coffeebot.board import Envelope
+from coffeebot.errors import OrderError
 from coffeebot.logs import Event, log_event
 from coffeebot.messages import (
     DELIVERY_STATUS,
@@ -33,6 +35,7 @@ from coffeebot.messages import (
     OrderUpdate,
 )
 from coffeebot.modules.base import Module, ModuleBoard, ModuleContext
+from coffeebot.orders import OrderNotFound, OrdersUnavailable
 from coffeebot.store import IN_FLIGHT, NewOrder, Order, OrderStore
 
 log = logging.getLogger(__name__)
@@ -50,24 +53,9 @@ _REPORTABLE_FROM: dict[OrderStatus, tuple[OrderStatus, ...]] = {
 }
 
 
-class OrderError(Exception):
-    """An order request that cannot be carried out; ``status`` is the HTTP answer."""
-
-    status = 409
-
-
-class OrderNotFound(OrderError):
-    status = 404
-
-
-class OrdersUnavailable(OrderError):
-    """The orders module is not running (starting up, or restarting after a crash)."""
-
-    status = 503
-
-
 class OrdersModule(Module):
-    """Keeps the durable queue and feeds navigation one order at a time."""
+    """Keeps the durable queue and feeds navigation one order at a time; implements
+    :class:`~coffeebot.orders.Orders` for the web."""
 
     name = "orders"
     inputs = (DELIVERY_STATUS,)
@@ -90,10 +78,18 @@ class OrdersModule(Module):
             raise OrdersUnavailable("the order queue is not running; try again shortly")
         return self._board
 
-    def _announce(self, order: Order, cause: str) -> None:
-        """Publish a stored change and log it: the one place every transition passes."""
+    def _announce(self, order: Order, cause: str, update: DeliveryUpdate | None = None) -> None:
+        """Publish a stored change and log it: the one place every transition passes;
+        ``update``: navigation's report the change came from."""
         self._require_board().publish(
-            ORDER_UPDATE, OrderUpdate(order_id=order.id, status=order.status, detail=order.detail)
+            ORDER_UPDATE,
+            OrderUpdate(
+                order_id=order.id,
+                status=order.status,
+                detail=order.detail,
+                ready_for_cup=update is not None and update.ready_for_cup,
+                problem=None if update is None else update.problem,
+            ),
         )
         log_event(
             log,
@@ -117,6 +113,9 @@ class OrdersModule(Module):
         if order is None:
             raise OrderNotFound(f"no order {order_id!r}")
         return order
+
+    async def active(self) -> list[Order]:
+        return await self.store.active()
 
     async def cancel(self, order_id: str, detail: str = "cancelled by the customer") -> Order:
         """Cancel an order that is still waiting; a dispatched one is navigation's to end."""
@@ -186,7 +185,7 @@ class OrdersModule(Module):
                 extra={"order": update.order_id, "status": update.status.value},
             )
             return
-        self._announce(order, update.detail or "reported by navigation")
+        self._announce(order, update.detail or "reported by navigation", update)
         if order.status.final:
             self._current = None
             await self._dispatch_next()

@@ -9,13 +9,9 @@ end the robot still has to go back to base; :attr:`returning` says so.
 
 from __future__ import annotations
 
-from coffeebot.messages import DeliveryUpdate, OrderStatus
+from coffeebot.messages import DeliveryProblem, DeliveryUpdate, OrderStatus
 
 MOVING = (OrderStatus.ON_THE_WAY, OrderStatus.WAITING_FOR_ELEVATOR)
-
-READY_FOR_CUP = "the robot is in the tea room, waiting for the cup"
-"""The ``preparing`` detail once the robot stands ready: staff load the cup from then on
-(an order is dispatched while the robot may still be driving back from the last one)."""
 
 
 class DeliveryLifecycle:
@@ -27,9 +23,21 @@ class DeliveryLifecycle:
         self.status = OrderStatus.PREPARING
         self.left_base = False
 
-    def _to(self, status: OrderStatus, detail: str) -> DeliveryUpdate:
+    def _to(
+        self,
+        status: OrderStatus,
+        detail: str,
+        problem: DeliveryProblem | None = None,
+        ready_for_cup: bool = False,
+    ) -> DeliveryUpdate:
         self.status = status
-        return DeliveryUpdate(order_id=self.order_id, status=status, detail=detail)
+        return DeliveryUpdate(
+            order_id=self.order_id,
+            status=status,
+            detail=detail,
+            problem=problem,
+            ready_for_cup=ready_for_cup,
+        )
 
     @property
     def final(self) -> bool:
@@ -43,7 +51,11 @@ class DeliveryLifecycle:
     def ready_for_cup(self) -> DeliveryUpdate | None:
         if self.status is not OrderStatus.PREPARING or self.left_base:
             return None
-        return self._to(OrderStatus.PREPARING, READY_FOR_CUP)
+        return self._to(
+            OrderStatus.PREPARING,
+            "the robot is in the tea room, waiting for the cup",
+            ready_for_cup=True,
+        )
 
     def cup_loaded(self) -> DeliveryUpdate | None:
         if self.status is not OrderStatus.PREPARING:
@@ -51,16 +63,20 @@ class DeliveryLifecycle:
         self.left_base = True
         return self._to(OrderStatus.ON_THE_WAY, f"leaving the tea room for {self.room}")
 
-    def progress(self, detail: str) -> DeliveryUpdate | None:
-        """On the way again (after the elevator, or with news such as "blocked")."""
+    def progress(
+        self, detail: str, problem: DeliveryProblem | None = None
+    ) -> DeliveryUpdate | None:
+        """On the way again (after the elevator), or with news such as "blocked"."""
         if self.status not in MOVING:
             return None
-        return self._to(OrderStatus.ON_THE_WAY, detail)
+        return self._to(OrderStatus.ON_THE_WAY, detail, problem)
 
-    def waiting_for_elevator(self, detail: str) -> DeliveryUpdate | None:
+    def waiting_for_elevator(
+        self, detail: str, problem: DeliveryProblem | None = None
+    ) -> DeliveryUpdate | None:
         if self.status not in MOVING:
             return None
-        return self._to(OrderStatus.WAITING_FOR_ELEVATOR, detail)
+        return self._to(OrderStatus.WAITING_FOR_ELEVATOR, detail, problem)
 
     def arrived(self, detail: str) -> DeliveryUpdate | None:
         if self.status not in MOVING:
@@ -77,7 +93,7 @@ class DeliveryLifecycle:
             return None
         return self._to(OrderStatus.CANCELLED, detail)
 
-    def fail(self, reason: str) -> DeliveryUpdate | None:
+    def fail(self, reason: str, problem: DeliveryProblem) -> DeliveryUpdate | None:
         if self.final:
             return None
-        return self._to(OrderStatus.FAILED, reason)
+        return self._to(OrderStatus.FAILED, reason, problem)

@@ -1,13 +1,12 @@
 """What motion does with one instruction, one control period at a time (no I/O).
 
-``follow_lane`` holds the lane with the speed profile until the lane ahead holds an obstacle
-on the costmap. Then: while the obstacle has not stood still for ``static_confirm_s`` (a
-person walking, or something just seen) the robot stops short of it and waits; once it is
-static, and the instruction allows it, the Dynamic Window Approach takes over until the lane
-ahead is clear again and the robot is back near its lane; if no arc gets past, the robot is
-blocked and waits for the way to clear. ``drive_to`` turns towards a point, then drives to
-it on a held heading. ``turn`` turns on the spot. The safety gate sits outside this class,
-in the module, and overrides it.
+``follow_lane`` holds the lane with the speed profile and delegates what to do about an
+obstacle in the lane to the detour (:mod:`coffeebot.navigation.detour`): while it is being
+confirmed the robot stops short of it; while going round and rejoining the Dynamic Window
+Approach steers to the detour's lane; if no arc gets past, the robot is blocked and waits for
+the way to clear. ``drive_to`` turns towards a point, then drives to it on a held heading.
+``turn`` turns on the spot. The safety gate sits outside this class, in the module, and
+overrides it.
 """
 
 from __future__ import annotations
@@ -19,7 +18,13 @@ import numpy as np
 
 from coffeebot.config import MotionConfig
 from coffeebot.floorplan import Floor, FloorPlan
-from coffeebot.messages import MotionState, MotionStatus, MoveInstruction, PoseEstimate
+from coffeebot.messages import (
+    MotionState,
+    MotionStatus,
+    MoveInstruction,
+    PoseEstimate,
+    StopCause,
+)
 from coffeebot.navigation.control import (
     SpeedProfile,
     lane_heading_deg,
@@ -27,6 +32,7 @@ from coffeebot.navigation.control import (
     turn_rate_dps,
 )
 from coffeebot.navigation.costmap import Footprint, LocalCostmap
+from coffeebot.navigation.detour import DetourPlanner, Phase, Sighting
 from coffeebot.navigation.dwa import DynamicWindow, rollout
 from coffeebot.perception.geometry import wrap_deg
 
@@ -43,15 +49,6 @@ swings out about the axle), from where the dynamic window finds arcs past it."""
 
 TURN_CHECK_STEPS = 7
 """Headings checked along a turn on the spot before it is made."""
-
-REJOIN_MM = 100.0
-"""After going round, the dynamic window steers back to the lane until the robot is this
-close to it; lane keeping turns at up to ``max_lane_angle_deg`` without looking at the walls,
-and from a detour lane beside the far wall that swings the rear corner into it."""
-
-WAIT_ROOM_MM = 200.0
-"""Room left beyond the planner's lethal zone where the robot waits in front of an obstacle,
-so the dynamic window can still turn away from it."""
 
 
 @dataclass(frozen=True)
@@ -79,11 +76,7 @@ class MotionController:
         self._direction = 1.0
         self._state = MotionState.IDLE
         self._since = 0.0
-        self._detour: float | None = None
-        self._past: float | None = None
-        """Going round: the furthest along-hallway position of the obstacle seen so far."""
-        self._rejoining = False
-        """Past the obstacle, the dynamic window is steering back to the lane."""
+        self.detour = DetourPlanner(cfg, costmap, footprint)
         self._line: float | None = None
         """``drive_to``: the direction of the line being followed, fixed at its start."""
 
@@ -92,9 +85,12 @@ class MotionController:
         self.speed = 0.0
         self.yaw_rate = 0.0
 
-    def safety_status(self, instruction_id: int, now: float, reason: str) -> MotionStatus:
+    def safety_status(
+        self, instruction_id: int, now: float, reason: str, cause: StopCause | None
+    ) -> MotionStatus:
         """The status while the safety gate holds the robot."""
-        return self._status(instruction_id, MotionState.SAFETY_STOP, now, None, reason)
+        status = self._status(instruction_id, MotionState.SAFETY_STOP, now, None, reason)
+        return status.model_copy(update={"stopped_by": cause})
 
     def _status(
         self,
@@ -143,8 +139,7 @@ class MotionController:
             return self._command(0.0, 0.0, dt, status, speed_limit)
         if instruction.id != self._instruction_id:
             self._instruction_id = instruction.id
-            self._detour = self._past = None
-            self._rejoining = False
+            self.detour.reset()
             self._line = None
             self._state = MotionState.MOVING
             self._since = now
@@ -258,92 +253,30 @@ class MotionController:
             approach_mm=approach,
             approach_mm_s=cfg.approach_speed_mm_s,
         )
-        ahead = self._obstacle_ahead(floor, s, lane, direction, now)
-        if ahead is not None:
-            obstacle_s, static = ahead
-            if self._rejoining:  # something new in the lane: judged afresh
-                self._detour, self._rejoining = None, False
-            if static and ins.avoid:
-                # Chosen from what is seen of the obstacle, and moved out (to the nearest lane
-                # still free) when more of it shows up while going round and stands still
-                # (a long cart is seen bit by bit; a noisy reading comes and goes).
-                wanted = lane if self._detour is None else self._detour
-                settled = self._detour is not None
-                free = self._detour_lane(floor, obstacle_s, wanted, direction, now, settled)
-                if free is not None:
-                    self._detour = free
-            if self._detour is not None:
-                far = obstacle_s + direction * cfg.static_tolerance_mm
-                if self._past is None or (far - self._past) * direction > 0:
-                    self._past = far
-            if self._detour is None:
-                gap = (obstacle_s - s) * direction - self._wait_distance()
-                target = min(target, self.profile.target(gap, cruise))
-                if not static:
-                    why = "something moving ahead, waiting"
-                elif ins.avoid:
-                    why = "no way past the obstacle ahead, waiting"
-                else:
-                    why = "obstacle ahead and not allowed to leave the lane, waiting"
-                state = MotionState.WAITING
-                if static and ins.avoid:
-                    state = MotionState.BLOCKED
-                if target > 0:
-                    state = MotionState.MOVING
-                status = self._status(ins.id, state, now, remaining, why)
-        elif self._detour is not None and self._passed(s, direction):
-            # Past it and the lane ahead is clear: the dynamic window steers back to the lane,
-            # checking the rear's swing against the walls, until lane keeping can take over.
-            self._past = None
-            self._rejoining = abs(lane - d) > REJOIN_MM
-            self._detour = lane if self._rejoining else None
-        if self._detour is not None:
-            # Hold the detour lane until the body is past everything seen of the obstacle.
-            return self._avoid(
-                ins, floor, pose, self._detour, direction, target, now, dt, limit, remaining
+        sighting = self.detour.update(floor, s, d, lane, direction, ins.avoid, now)
+        detour_lane = self.detour.lane_mm
+        if self.detour.phase is Phase.CONFIRMING and sighting is not None:
+            gap = (sighting.s_mm - s) * direction - self.detour.wait_distance_mm()
+            target = min(target, self.profile.target(gap, cruise))
+            status = self._status(
+                ins.id,
+                _waiting_state(sighting, ins.avoid, target),
+                now,
+                remaining,
+                _waiting_why(sighting, ins.avoid),
+            )
+        elif detour_lane is not None:
+            # Going round (or back to the lane): hold the detour lane until the body is past
+            # everything seen of the obstacle.
+            return self._go_round(
+                ins, floor, pose, detour_lane, direction, target, now, dt, limit, remaining
             )
         heading = lane_heading_deg(travel, (lane - d) * direction, cfg)
         return self._command(
             target, turn_rate_dps(pose.heading_deg, heading, cfg), dt, status, limit
         )
 
-    def _passed(self, s: float, direction: float) -> bool:
-        """The body's rear is beyond the furthest obstacle cell seen while going round."""
-        if self._past is None:
-            return True
-        rear = s - direction * (self.footprint.length_mm / 2 + self.cfg.obstacle_clearance_mm)
-        return (rear - self._past) * direction > 0
-
-    def _detour_lane(
-        self,
-        floor: Floor,
-        obstacle_s: float,
-        lane: float,
-        direction: float,
-        now: float,
-        settled: bool = False,
-    ) -> float | None:
-        """The lane nearest to ``lane`` whose corridor past the obstacle is free, if any;
-        ``settled``: of the cells that have stood still for ``static_confirm_s``."""
-        cfg = self.cfg
-        xs, ys, since = self.costmap.obstacles(now)
-        if settled:
-            keep = since <= now - cfg.static_confirm_s
-            xs, ys = xs[keep], ys[keep]
-        sd = np.array([floor.to_hallway(x, y) for x, y in zip(xs, ys, strict=True)]).reshape(-1, 2)
-        along = (sd[:, 0] - obstacle_s) * direction
-        near = sd[(along > -self.footprint.length_mm) & (along < cfg.lookahead_mm), 1]
-        half_body = self.footprint.width_mm / 2
-        reach = floor.hallway.width_mm / 2 - half_body - cfg.side_clearance_mm
-        clearance = half_body + cfg.obstacle_clearance_mm + cfg.costmap_resolution_mm
-        step = cfg.costmap_resolution_mm
-        offsets = sorted(np.arange(-reach, reach + 1.0, step), key=lambda d: abs(d - lane))
-        for d in offsets:
-            if not np.any(np.abs(near - d) < clearance):
-                return float(d)
-        return None
-
-    def _avoid(
+    def _go_round(
         self,
         ins: MoveInstruction,
         floor: Floor,
@@ -429,34 +362,19 @@ class MotionController:
         admissible, _ = self.costmap.admissible(xs, ys, headings, start, now, self.costmap.body)
         return bool(admissible[0])
 
-    def _wait_distance(self) -> float:
-        """Centre-to-obstacle distance at which the robot waits: outside the lethal zone."""
-        fp = self.footprint
-        return (
-            fp.length_mm / 2
-            + fp.front_extra_mm
-            + self.cfg.obstacle_clearance_mm
-            + self.cfg.costmap_resolution_mm
-            + WAIT_ROOM_MM
-        )
 
-    def _obstacle_ahead(
-        self, floor: Floor, s: float, lane: float, direction: float, now: float
-    ) -> tuple[float, bool] | None:
-        """The nearest obstacle cell in the lane ahead and whether it has stood still."""
-        xs, ys, since = self.costmap.obstacles(now)
-        if xs.size == 0:
-            return None
-        sd = np.array([floor.to_hallway(x, y) for x, y in zip(xs, ys, strict=True)])
-        along = (sd[:, 0] - s) * direction
-        half = self.footprint.width_mm / 2 + self.cfg.obstacle_clearance_mm
-        behind = self.footprint.length_mm / 2
-        in_lane = (
-            (np.abs(sd[:, 1] - lane) < half) & (along > -behind) & (along < self.cfg.lookahead_mm)
-        )
-        if not in_lane.any():
-            return None
-        nearest = int(np.argmin(np.where(in_lane, along, np.inf)))
-        near = in_lane & (along < along[nearest] + self.cfg.static_tolerance_mm)
-        static = bool(np.all(since[near] <= now - self.cfg.static_confirm_s))
-        return float(sd[nearest, 0]), static
+def _waiting_state(sighting: Sighting, avoid: bool, target_mm_s: float) -> MotionState:
+    """Confirming an obstacle: still closing the gap, waiting, or blocked with no way past."""
+    if target_mm_s > 0:
+        return MotionState.MOVING
+    if sighting.static and avoid:
+        return MotionState.BLOCKED
+    return MotionState.WAITING
+
+
+def _waiting_why(sighting: Sighting, avoid: bool) -> str:
+    if not sighting.static:
+        return "something moving ahead, waiting"
+    if avoid:
+        return "no way past the obstacle ahead, waiting"
+    return "obstacle ahead and not allowed to leave the lane, waiting"

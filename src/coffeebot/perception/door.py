@@ -28,6 +28,7 @@ import math
 from collections import deque
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
+from typing import Literal
 
 import numpy as np
 
@@ -293,7 +294,9 @@ class DoorDetector:
         self._last_span[side] = (centre - width / 2.0, centre + width / 2.0)
         wall_d = frame.floor.hallway.width_mm / 2.0 * (1.0 if side == "left" else -1.0)
         x, y = frame.floor.from_hallway(centre, wall_d)
-        kind = "door" if passed.rise.jump_mm <= cfg.max_door_jump_mm else "opening"
+        kind: Literal["door", "opening"] = (
+            "door" if passed.rise.jump_mm <= cfg.max_door_jump_mm else "opening"
+        )
         room = None
         plan_x = plan_y = correction = None
         if feature is not None:

@@ -2,5 +2,6 @@
 
 from coffeebot.web.app import create_app
 from coffeebot.web.deps import RoomChoice, WebDeps
+from coffeebot.web.module import WebModule
 
-__all__ = ["RoomChoice", "WebDeps", "create_app"]
+__all__ = ["RoomChoice", "WebDeps", "WebModule", "create_app"]

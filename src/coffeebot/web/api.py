@@ -1,10 +1,11 @@
-"""The JSON API: orders, the board, operator actions. Thin handlers over the orders module."""
+"""The JSON API: orders, the board, operator actions. Thin handlers over the orders protocol."""
 
 from __future__ import annotations
 
 from aiohttp import web
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from coffeebot.errors import OrderError
 from coffeebot.messages import (
     ESTOP,
     OPERATOR_EVENT,
@@ -12,9 +13,9 @@ from coffeebot.messages import (
     OperatorEvent,
     OrderStatus,
 )
-from coffeebot.modules.orders import OrderError
 from coffeebot.store import NewOrder, Order, OrderRules
 from coffeebot.web.context import (
+    BUS,
     CHANGES,
     DEPS,
     FRAMES,
@@ -87,7 +88,7 @@ async def create_order(request: web.Request) -> web.Response:
 async def list_orders(request: web.Request) -> web.Response:
     """Every order that has not ended, for operators (it shows customers' names)."""
     operator_only(request)
-    orders = await request.app[DEPS].orders.store.active()
+    orders = await request.app[DEPS].orders.active()
     return web.json_response(text="[" + ",".join(o.model_dump_json() for o in orders) + "]")
 
 
@@ -112,7 +113,7 @@ async def cancel_order(request: web.Request) -> web.Response:
 
 
 def publish_event(request: web.Request, kind: str, order_id: str) -> None:
-    request.app[DEPS].bus.publish(
+    request.app[BUS].publish(
         OPERATOR_EVENT, OperatorEvent.model_validate({"kind": kind, "order_id": order_id})
     )
 
@@ -194,7 +195,7 @@ async def estop(request: web.Request) -> web.Response:
     except ValidationError as exc:
         return validation_error(exc, "e-stop request")
     msg = EStop(engaged=wanted.engaged, source="web operator", reason=wanted.reason)
-    request.app[DEPS].bus.publish(ESTOP, msg)
+    request.app[BUS].publish(ESTOP, msg)
     return web.json_response(text=msg.model_dump_json())
 
 

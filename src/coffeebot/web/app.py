@@ -1,8 +1,9 @@
-"""The aiohttp application: ``create_app(deps)`` is the only way it is built.
+"""The aiohttp application: ``create_app(deps, bus)`` is the only way it is built.
 
 Routes live in :mod:`coffeebot.web.api` (JSON) and :mod:`coffeebot.web.pages` (HTML); this
-module adds what applies to all of them: the body size limit, errors as JSON under ``/api``
-and as a page elsewhere, security headers, and the background task that follows the board.
+module adds what applies to all of them: the body size limit, the orders' errors mapped to
+HTTP answers (here and nowhere else), errors as JSON under ``/api`` and as a page elsewhere,
+security headers, and the background task that follows the board.
 """
 
 from __future__ import annotations
@@ -15,9 +16,11 @@ from pathlib import Path
 
 from aiohttp import web
 
-from coffeebot.modules.orders import OrderError
+from coffeebot.errors import OrderError
+from coffeebot.orders import OrderNotFound, OrdersUnavailable
 from coffeebot.web import api, pages
 from coffeebot.web.context import (
+    BUS,
     CHANGES,
     DEPS,
     FRAMES,
@@ -26,7 +29,7 @@ from coffeebot.web.context import (
     RateLimiter,
     error,
 )
-from coffeebot.web.deps import WebDeps
+from coffeebot.web.deps import BoardIO, WebDeps
 from coffeebot.web.live import Changes, FrameCache
 
 log = logging.getLogger(__name__)
@@ -46,6 +49,16 @@ SECURITY_HEADERS = {
 
 Handler = Callable[[web.Request], Awaitable[web.StreamResponse]]
 
+ORDER_ERROR_STATUS: dict[type[OrderError], int] = {OrderNotFound: 404, OrdersUnavailable: 503}
+"""The HTTP answer to each kind of order error; any other is a conflict with the order's
+state (409)."""
+
+
+def order_error_status(exc: OrderError) -> int:
+    return next(
+        (ORDER_ERROR_STATUS[cls] for cls in type(exc).__mro__ if cls in ORDER_ERROR_STATUS), 409
+    )
+
 
 def _error_response(request: web.Request, status: int, message: str) -> web.Response:
     if request.path.startswith("/api/"):
@@ -58,7 +71,7 @@ async def errors_and_headers(request: web.Request, handler: Handler) -> web.Stre
     try:
         response = await handler(request)
     except OrderError as exc:
-        response = _error_response(request, exc.status, str(exc))
+        response = _error_response(request, order_error_status(exc), str(exc))
     except web.HTTPException as exc:
         if exc.status < 400:
             raise
@@ -71,12 +84,15 @@ async def errors_and_headers(request: web.Request, handler: Handler) -> web.Stre
     return response
 
 
-def create_app(deps: WebDeps) -> web.Application:
-    """The web app over ``deps``; serve it with ``web.AppRunner`` or aiohttp's test client."""
+def create_app(deps: WebDeps, bus: BoardIO) -> web.Application:
+    """The web app over ``deps``, publishing and subscribing through ``bus`` (under the
+    daemon, the web module's restricted board view); serve it with ``web.AppRunner`` or
+    aiohttp's test client."""
     app = web.Application(
         middlewares=[errors_and_headers], client_max_size=deps.config.max_body_bytes
     )
     app[DEPS] = deps
+    app[BUS] = bus
     app[CHANGES] = Changes()
     app[FRAMES] = FrameCache(deps, max_age_s=deps.config.stream_period_s / 2)
     app[LIMITER] = RateLimiter(
@@ -92,7 +108,7 @@ def create_app(deps: WebDeps) -> web.Application:
 
 
 async def _follow_board(app: web.Application) -> AsyncIterator[None]:
-    pump = asyncio.create_task(app[CHANGES].pump(app[DEPS].bus), name="web:follow-board")
+    pump = asyncio.create_task(app[CHANGES].pump(app[BUS]), name="web:follow-board")
     yield
     pump.cancel()
     with contextlib.suppress(asyncio.CancelledError):

@@ -10,7 +10,7 @@ from aiohttp import web
 from pydantic import ValidationError
 
 from coffeebot.clock import Clock
-from coffeebot.web.deps import WebDeps
+from coffeebot.web.deps import BoardIO, WebDeps
 from coffeebot.web.live import Changes, FrameCache
 
 
@@ -45,6 +45,7 @@ class RateLimiter:
 
 
 DEPS = web.AppKey("deps", WebDeps)
+BUS = web.AppKey("bus", BoardIO)
 CHANGES = web.AppKey("changes", Changes)
 FRAMES = web.AppKey("frames", FrameCache)
 LIMITER = web.AppKey("limiter", RateLimiter)

@@ -1,7 +1,10 @@
 """What the web app is built from: plain data and narrow interfaces, no daemon internals.
 
-The floor plan, the pose estimate and the module list come in as data or callables, so the
-app runs the same under the daemon, in API tests on a bare board and in the benchmark.
+The orders come in as the orders protocol (the robot's orders module, or a fleet's
+dispatcher), the board as a read-only view for the inspector, and the floor plan, the poses
+and the module list as data or callables, so the app runs the same under the daemon, in API
+tests on a bare board and in the benchmark. The board traffic the web itself makes goes
+through the ``bus`` handed to :func:`~coffeebot.web.app.create_app`.
 """
 
 from __future__ import annotations
@@ -12,11 +15,11 @@ from typing import Protocol, TypeVar
 
 from pydantic import BaseModel
 
-from coffeebot.board import Board, Envelope, Subscription, Topic
+from coffeebot.board import BoardView, Envelope, Subscription, Topic
 from coffeebot.config import GeometryConfig, TofSensorConfig, WebConfig
 from coffeebot.messages import Health
 from coffeebot.modules.base import Module
-from coffeebot.modules.orders import OrdersModule
+from coffeebot.orders import Orders
 from coffeebot.web.livemap import PoseSource
 
 M = TypeVar("M", bound=BaseModel)
@@ -40,20 +43,16 @@ class RoomChoice(BaseModel):
 
 @dataclass(frozen=True)
 class WebDeps:
-    """Everything ``create_app`` needs.
+    """Everything ``create_app`` needs besides the bus."""
 
-    ``board`` is read only, for the inspector (statistics and latest values of every topic);
-    all publishing and subscribing goes through ``bus``, which under the daemon is limited to
-    the web module's declared topics.
-    """
-
-    board: Board
-    bus: BoardIO
-    orders: OrdersModule
+    board: BoardView
+    """Read only, for the inspector: statistics and latest values of every topic."""
+    orders: Orders
     rooms: Sequence[RoomChoice]
     config: WebConfig = field(default_factory=WebConfig)
     operator_token: str | None = None
-    modules: Sequence[Module] = ()
+    modules: Callable[[], Sequence[Module]] = tuple
+    """The modules the inspector draws as a graph (``Daemon.modules``)."""
     floor_svg: Callable[[int], str | None] | None = None
     poses: PoseSource | None = None
     sensors: Sequence[TofSensorConfig] = ()

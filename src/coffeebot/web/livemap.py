@@ -16,7 +16,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, Field
 
-from coffeebot.board import Board, BoardError, Envelope
+from coffeebot.board import BoardError, BoardView, Envelope
 from coffeebot.config import TofSensorConfig
 from coffeebot.messages import RANGE_SCAN, RangeScan, ReadingStatus
 
@@ -106,7 +106,7 @@ LAYERS: dict[str, Layer] = {RANGE_SCAN.name: scan_rays}
 
 
 def map_frame(
-    board: Board, poses: PoseSource | None, sensors: Sequence[TofSensorConfig]
+    board: BoardView, poses: PoseSource | None, sensors: Sequence[TofSensorConfig]
 ) -> MapFrame:
     """Everything to draw now; topic layers are placed relative to the first (trusted) pose."""
     current = dict(poses()) if poses is not None else {}
@@ -116,7 +116,7 @@ def map_frame(
     shapes: list[Shape] = []
     for topic, layer in LAYERS.items():
         try:
-            envelope = board.latest(topic)
+            envelope: Envelope[Any] | None = board.latest(topic)
         except BoardError:  # the topic is not declared on this board
             continue
         if envelope is not None:

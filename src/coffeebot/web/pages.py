@@ -109,6 +109,6 @@ async def inspect_page(request: web.Request) -> web.Response:
 
 @routes.get("/inspect/graph.svg")
 async def graph_svg(request: web.Request) -> web.Response:
-    graph = module_graph(request.app[DEPS].modules)
+    graph = module_graph(request.app[DEPS].modules())
     svg = request.app[TEMPLATES].get_template("graph.svg").render(graph=graph)
     return web.Response(text=svg, content_type="image/svg+xml")

@@ -18,6 +18,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from coffeebot.floorplan import Floor, FloorPlan, segment_distances
+from coffeebot.hardware.vl53l1x import FULL_ROI, SpadRoi
 from coffeebot.messages import AnchorRange, UwbFix
 from coffeebot.sim.world.elevator import SimElevator
 from coffeebot.sim.world.geometry import Surfaces, footprint_contacts
@@ -26,14 +27,12 @@ from coffeebot.sim.world.obstacles import ObstacleSpec, obstacle_surfaces
 from coffeebot.sim.world.robot import Pose, RobotBody, RobotSpec
 from coffeebot.sim.world.tof import (
     DEFAULT_SETUP,
-    FULL_ROI,
     ConeOptics,
     Layers,
     RangingNoise,
     RangingSetup,
     Returns,
     SensorArray,
-    SpadRoi,
     ToFReading,
     range_once,
 )
@@ -342,5 +341,5 @@ class World:
             for d, a in used
         ]
         x, y, z = truth + model.position_sigma_mm * rng.standard_normal(3)
-        quality = round(sum(r.quality for r in ranges) / len(ranges))
+        quality = round(sum(r.quality or 0 for r in ranges) / len(ranges))
         return UwbFix(x_mm=x, y_mm=y, z_mm=z, quality=quality, anchors=ranges)

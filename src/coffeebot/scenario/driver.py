@@ -1,10 +1,7 @@
-"""Scenario files: a reproducible run of the whole daemon on the simulated world, and its report.
-
-A scenario (TOML, ``docs/scenarios.md``) names the floor plan, where the robot starts, the
-orders customers place and when, the obstacles, the faults, speed limits, the random seed and
-a time limit. :class:`ScenarioModule` places the orders through the orders module (the path
-the web uses), watches the safety verdicts and order updates, and ends the run; the report
-then combines what the daemon did with what only the simulator knows (collisions, clearance).
+"""The scenario's driver inside the daemon: it places the scenario's orders through the orders
+module (the path the web uses), plays the staff and the customers, watches the safety
+verdicts and order updates, and ends the run. What it saw, with what only the simulator knows
+(collisions, clearance), makes the report (:mod:`coffeebot.scenario.report`).
 """
 
 from __future__ import annotations
@@ -14,13 +11,12 @@ import contextlib
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import ValidationError
 
-from coffeebot.config import ConfigError, RobotConfig, describe_validation_error, read_toml
-from coffeebot.floorplan import FloorPlan, load_floorplan
+from coffeebot.config import RobotConfig
+from coffeebot.errors import OrderError
+from coffeebot.floorplan import FloorPlan
 from coffeebot.messages import (
     COLLISION,
     MOTION_STATUS,
@@ -28,124 +24,24 @@ from coffeebot.messages import (
     ORDER_UPDATE,
     OperatorEvent,
     OrderStatus,
+    OrderUpdate,
     SafetyState,
 )
 from coffeebot.modules.base import Module, ModuleContext
-from coffeebot.modules.orders import OrderError, OrdersModule
-from coffeebot.navigation.lifecycle import READY_FOR_CUP
-from coffeebot.sim.faults import Fault
-from coffeebot.sim.simulation import SimSetup, Simulation
-from coffeebot.sim.world import ObstacleSpec, Pose
+from coffeebot.orders import Orders
+from coffeebot.scenario.report import (
+    OrderOutcome,
+    SafetyStopEntry,
+    ScenarioReport,
+    world_facts,
+)
+from coffeebot.scenario.spec import OrderSpec, Scenario
+from coffeebot.sim.simulation import Simulation
+from coffeebot.sim.world import Pose
 from coffeebot.store import NewOrder, OrderRules
 
 MOVING_MM_S = 20.0
 """Faster than this (ground truth) counts as driving for the mean speed."""
-
-
-class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-
-class StartPose(_Model):
-    """Where the robot stands when the run begins (floor frame)."""
-
-    floor: int
-    x_mm: float
-    y_mm: float
-    heading_deg: float = 0.0
-
-
-class OrderSpec(_Model):
-    """A customer placing an order ``at_s`` simulated seconds into the run."""
-
-    room: str
-    at_s: float = Field(0.0, ge=0)
-    drink: str = "espresso"
-    name: str = "scenario"
-
-
-class Limits(_Model):
-    """Speed limits for the run; unset keeps the board file's values."""
-
-    max_speed_mm_s: float | None = Field(None, gt=0, description="the motors' limit")
-    cruise_speed_mm_s: float | None = Field(None, gt=0, description="navigation's cruise")
-
-
-class Staff(_Model):
-    """The people around a delivery: staff loading the cup, the customer taking it."""
-
-    load_after_s: float = Field(
-        3.0, ge=0, description="after the robot stands ready in the tea room for the cup"
-    )
-    pickup_after_s: float | None = Field(
-        5.0, ge=0, description="after the robot arrived; unset: nobody comes"
-    )
-
-
-class Scenario(_Model):
-    name: str
-    description: str = ""
-    floorplan: Path = Field(description="relative to the scenario file")
-    seed: int = 0
-    time_limit_s: float = Field(gt=0, description="simulated seconds before the run ends")
-    start: StartPose
-    orders: list[OrderSpec] = []
-    obstacles: list[ObstacleSpec] = []
-    faults: list[Fault] = []
-    limits: Limits = Limits()
-    staff: Staff = Staff()
-
-    def apply_limits(self, config: RobotConfig) -> RobotConfig:
-        """The board's config with this scenario's speed limits."""
-        motor, motion = config.motor, config.motion
-        if self.limits.max_speed_mm_s is not None:
-            motor = motor.model_copy(update={"max_speed_mm_s": self.limits.max_speed_mm_s})
-        if self.limits.cruise_speed_mm_s is not None:
-            motion = motion.model_copy(update={"cruise_speed_mm_s": self.limits.cruise_speed_mm_s})
-        return config.model_copy(update={"motor": motor, "motion": motion})
-
-    def setup(self, speed: float = 1.0) -> SimSetup:
-        """The simulated world this scenario starts from."""
-        start = self.start
-        return SimSetup(
-            floor=start.floor,
-            pose=Pose(start.x_mm, start.y_mm, start.heading_deg),
-            obstacles=self.obstacles,
-            faults=self.faults,
-            seed=self.seed,
-            speed=speed,
-        )
-
-
-def load_scenario(path: str | Path) -> tuple[Scenario, FloorPlan]:
-    """Read and check a scenario and its floor plan; problems raise :class:`ConfigError`
-    naming the file and the field (``orders.1.room: unknown room '299'``)."""
-    path = Path(path)
-    try:
-        scenario = Scenario.model_validate(read_toml(path))
-    except ValidationError as exc:
-        raise ConfigError(describe_validation_error(path, exc)) from None
-    plan_path = path.parent / scenario.floorplan
-    scenario = scenario.model_copy(update={"floorplan": plan_path})
-    plan = load_floorplan(plan_path)
-    levels = {f.level for f in plan.floors}
-    problems = []
-    if scenario.start.floor not in levels:
-        problems.append(f"start.floor: no floor {scenario.start.floor} in {plan_path}")
-    rooms = set(plan.rooms)
-    problems += [
-        f"orders.{i}.room: unknown room {o.room!r}"
-        for i, o in enumerate(scenario.orders)
-        if o.room not in rooms
-    ]
-    problems += [
-        f"obstacles.{i}.floor: no floor {o.floor} in {plan_path}"
-        for i, o in enumerate(scenario.obstacles)
-        if o.floor not in levels
-    ]
-    if problems:
-        raise ConfigError("\n".join(f"{path}: {p}" for p in problems))
-    return scenario, plan
 
 
 @dataclass
@@ -197,7 +93,7 @@ class ScenarioModule(Module):
         plan: FloorPlan,
         config: RobotConfig,
         sim: Simulation,
-        orders: OrdersModule,
+        orders: Orders,
         finish: Callable[[str], None],
     ) -> None:
         self.scenario = scenario
@@ -238,7 +134,7 @@ class ScenarioModule(Module):
                 while pending and pending[0].spec.at_s <= t:
                     await self._place(pending.pop(0))
                 while (update := updates.get_nowait()) is not None:
-                    self._order_update(update.msg.order_id, update.msg.status, update.msg.detail)
+                    self._order_update(update.msg)
                 self._people(ctx, t)
                 self._odometer()
                 if t >= self.scenario.time_limit_s:
@@ -314,13 +210,14 @@ class ScenarioModule(Module):
             return
         track.id, track.status, track.placed_at_s = order.id, order.status.value, self.sim.t_s
 
-    def _order_update(self, order_id: str, status: OrderStatus, detail: str) -> None:
-        track = next((o for o in self.log.orders if o.id == order_id), None)
+    def _order_update(self, update: OrderUpdate) -> None:
+        track = next((o for o in self.log.orders if o.id == update.order_id), None)
         if track is None:
             return
-        track.status, track.detail = status.value, detail
+        status = update.status
+        track.status, track.detail = status.value, update.detail
         t = self.sim.t_s
-        if status is OrderStatus.PREPARING and detail == READY_FOR_CUP:
+        if update.ready_for_cup:
             track.ready_at_s = t
         if status is OrderStatus.ARRIVED:
             track.arrived_at_s = t
@@ -338,68 +235,39 @@ class ScenarioModule(Module):
             s, _ = floor.to_hallway(world.pose.x_mm, world.pose.y_mm)
         return abs(s - door.at_mm)
 
-    def report(self) -> dict[str, Any]:
-        """The report's content; ``orders`` as last seen on the board."""
-        sim = self.sim
-        with sim.lock:
-            world = sim.world
-            collisions = [
-                {
-                    "t": round(c.t_s, 3),
-                    "with": c.element,
-                    "speed_mm_s": round(c.speed_mm_s, 1),
-                    "floor": c.floor,
-                    "x_mm": round(c.x_mm),
-                    "y_mm": round(c.y_mm),
-                }
-                for c in world.collisions
-            ]
-            pose = world.pose
-            final = {
-                "floor": world.floor_level,
-                "x_mm": round(pose.x_mm),
-                "y_mm": round(pose.y_mm),
-                "heading_deg": round(pose.heading_deg, 1),
-            }
-        clearance = sim.truth.min_clearance_mm
-        return {
-            "scenario": self.scenario.name,
-            "seed": self.scenario.seed,
-            "sim_time_s": round(sim.t_s, 3),
-            "ended": self.log.ended,
-            "orders": [
-                {
-                    "id": o.id,
-                    "room": o.spec.room,
-                    "status": o.status,
-                    "detail": o.detail,
-                    "placed_at_s": _round(o.placed_at_s),
-                    "arrived_at_s": _round(o.arrived_at_s),
-                    "delivered_at_s": _round(o.delivered_at_s),
-                    "stop_error_mm": _round(o.stop_error_mm, 0),
-                }
+    def report(self) -> ScenarioReport:
+        """The run so far; ``orders`` as last seen on the board."""
+        contacts, final, least, faults = world_facts(self.sim)
+        return ScenarioReport(
+            scenario=self.scenario.name,
+            seed=self.scenario.seed,
+            sim_time_s=round(self.sim.t_s, 3),
+            ended=self.log.ended,
+            orders=[
+                OrderOutcome(
+                    id=o.id,
+                    room=o.spec.room,
+                    status=o.status,
+                    detail=o.detail,
+                    placed_at_s=_round(o.placed_at_s),
+                    arrived_at_s=_round(o.arrived_at_s),
+                    delivered_at_s=_round(o.delivered_at_s),
+                    stop_error_mm=_round(o.stop_error_mm, 0),
+                )
                 for o in self.log.orders
             ],
-            "collisions": collisions,
-            "travelled_mm": round(self.log.travelled_mm),
-            "moving_s": round(self.log.moving_s, 3),
-            "min_clearance_mm": round(clearance) if math.isfinite(clearance) else None,
-            "safety_stops": len(self.log.safety_stops),
-            "safety_stop_log": [
-                {"t": round(s.t_s, 3), "reason": s.reason, "sensor": s.sensor}
+            collisions=contacts,
+            travelled_mm=round(self.log.travelled_mm),
+            moving_s=round(self.log.moving_s, 3),
+            min_clearance_mm=least,
+            safety_stops=len(self.log.safety_stops),
+            safety_stop_log=[
+                SafetyStopEntry(t=round(s.t_s, 3), reason=s.reason, sensor=s.sensor)
                 for s in self.log.safety_stops
             ],
-            "faults_injected": [
-                {
-                    "t": round(f.t_s, 3),
-                    "fault": f.fault,
-                    "detail": f.detail,
-                    "cleared_t": _round(f.cleared_s),
-                }
-                for f in sim.truth.faults
-            ],
-            "final_pose": final,
-        }
+            faults_injected=faults,
+            final_pose=final,
+        )
 
 
 def _round(value: float | None, digits: int = 3) -> float | None:

@@ -1,0 +1,202 @@
+"""The go-around: what lane keeping does about an obstacle in its lane (no I/O).
+
+A detour has three phases. **Confirming**: something is in the lane ahead; the robot stops
+short of it until it has stood still for ``static_confirm_s`` (a person walking, or
+something just seen, is waited for) and, if the instruction allows leaving the lane, a lane
+past it is free. **Going round**: the dynamic window holds the detour lane until the body's
+rear is beyond the obstacle's extent, the furthest along-hallway position seen of it (a long
+cart is seen bit by bit, so the extent grows and the detour lane may move out). **Rejoining**:
+past it with the lane ahead clear, the dynamic window steers back to the lane, checking the
+rear's swing against the walls, until the robot is within ``REJOIN_MM`` of it; then the
+detour ends and lane keeping takes over. Something new in the lane while rejoining is judged
+afresh, from confirming.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import StrEnum
+
+import numpy as np
+
+from coffeebot.config import MotionConfig
+from coffeebot.floorplan import Floor
+from coffeebot.navigation.costmap import Footprint, LocalCostmap
+
+REJOIN_MM = 100.0
+"""After going round, the dynamic window steers back to the lane until the robot is this
+close to it; lane keeping turns at up to ``max_lane_angle_deg`` without looking at the walls,
+and from a detour lane beside the far wall that swings the rear corner into it."""
+
+WAIT_ROOM_MM = 200.0
+"""Room left beyond the planner's lethal zone where the robot waits in front of an obstacle,
+so the dynamic window can still turn away from it."""
+
+
+class Phase(StrEnum):
+    CONFIRMING = "confirming"
+    GOING_ROUND = "going_round"
+    REJOINING = "rejoining"
+
+
+@dataclass(frozen=True)
+class Sighting:
+    """The nearest obstacle cell in the lane ahead."""
+
+    s_mm: float
+    """Its along-hallway position."""
+    static: bool
+    """Whether it, and the cells just beyond it, have stood still for ``static_confirm_s``."""
+
+
+@dataclass
+class Detour:
+    """One go-around, from the first sighting to being back in the lane."""
+
+    phase: Phase = Phase.CONFIRMING
+    lane_mm: float | None = None
+    """The lane the dynamic window holds (going round: beside the obstacle; rejoining: the
+    instruction's lane); None while confirming."""
+    extent_s_mm: float | None = None
+    """The furthest along-hallway position of the obstacle seen while going round, plus the
+    static tolerance: the body's rear must be beyond it before the robot rejoins."""
+
+    def go_round(self, lane_mm: float) -> None:
+        self.phase, self.lane_mm = Phase.GOING_ROUND, lane_mm
+
+    def extend(self, far_s_mm: float, direction: float) -> None:
+        """More of the obstacle seen: the extent only ever grows in the direction of travel."""
+        if self.extent_s_mm is None or (far_s_mm - self.extent_s_mm) * direction > 0:
+            self.extent_s_mm = far_s_mm
+
+
+class DetourPlanner:
+    """Keeps the current instruction's detour and answers lane keeping's questions about the
+    obstacles in its lane, from the local costmap."""
+
+    def __init__(self, cfg: MotionConfig, costmap: LocalCostmap, footprint: Footprint) -> None:
+        self.cfg = cfg
+        self.costmap = costmap
+        self.footprint = footprint
+        self.detour: Detour | None = None
+        """None: the lane ahead is clear and lane keeping drives on its own."""
+
+    @property
+    def phase(self) -> Phase | None:
+        return None if self.detour is None else self.detour.phase
+
+    @property
+    def lane_mm(self) -> float | None:
+        """The lane the dynamic window steers to while going round or rejoining."""
+        return None if self.detour is None else self.detour.lane_mm
+
+    def reset(self) -> None:
+        """A new instruction: whatever was being gone round is judged afresh."""
+        self.detour = None
+
+    def wait_distance_mm(self) -> float:
+        """Centre-to-obstacle distance at which the robot waits: outside the lethal zone."""
+        fp = self.footprint
+        return (
+            fp.length_mm / 2
+            + fp.front_extra_mm
+            + self.cfg.obstacle_clearance_mm
+            + self.cfg.costmap_resolution_mm
+            + WAIT_ROOM_MM
+        )
+
+    def update(
+        self,
+        floor: Floor,
+        s: float,
+        d: float,
+        lane: float,
+        direction: float,
+        avoid: bool,
+        now: float,
+    ) -> Sighting | None:
+        """One control period at hallway position ``s``, ``d`` keeping ``lane``: move the
+        detour through its phases; the nearest obstacle in the lane ahead, if any."""
+        sighting = self.obstacle_ahead(floor, s, lane, direction, now)
+        detour = self.detour
+        if sighting is not None:
+            if detour is None or detour.phase is Phase.REJOINING:
+                detour = self.detour = Detour()
+            if sighting.static and avoid:
+                # Chosen from what is seen of the obstacle, and moved out (to the nearest lane
+                # still free) when more of it shows up while going round and stands still
+                # (a long cart is seen bit by bit; a noisy reading comes and goes).
+                settled = detour.phase is Phase.GOING_ROUND
+                wanted = detour.lane_mm if settled and detour.lane_mm is not None else lane
+                free = self.free_lane(floor, sighting.s_mm, wanted, direction, now, settled)
+                if free is not None:
+                    detour.go_round(free)
+            if detour.phase is Phase.GOING_ROUND:
+                detour.extend(sighting.s_mm + direction * self.cfg.static_tolerance_mm, direction)
+        elif detour is not None:
+            if detour.phase is Phase.CONFIRMING:
+                self.detour = None  # it went away before it was confirmed
+            elif self._passed(detour, s, direction):
+                # Past it and the lane ahead is clear: steer back until lane keeping can.
+                if abs(lane - d) > REJOIN_MM:
+                    detour.phase, detour.lane_mm, detour.extent_s_mm = Phase.REJOINING, lane, None
+                else:
+                    self.detour = None
+        return sighting
+
+    def _passed(self, detour: Detour, s: float, direction: float) -> bool:
+        """The body's rear is beyond the obstacle's extent (rejoining: nothing to pass)."""
+        if detour.extent_s_mm is None:
+            return True
+        rear = s - direction * (self.footprint.length_mm / 2 + self.cfg.obstacle_clearance_mm)
+        return (rear - detour.extent_s_mm) * direction > 0
+
+    def free_lane(
+        self,
+        floor: Floor,
+        obstacle_s: float,
+        lane: float,
+        direction: float,
+        now: float,
+        settled: bool = False,
+    ) -> float | None:
+        """The lane nearest to ``lane`` whose corridor past the obstacle is free, if any;
+        ``settled``: of the cells that have stood still for ``static_confirm_s``."""
+        cfg = self.cfg
+        xs, ys, since = self.costmap.obstacles(now)
+        if settled:
+            keep = since <= now - cfg.static_confirm_s
+            xs, ys = xs[keep], ys[keep]
+        sd = np.array([floor.to_hallway(x, y) for x, y in zip(xs, ys, strict=True)]).reshape(-1, 2)
+        along = (sd[:, 0] - obstacle_s) * direction
+        near = sd[(along > -self.footprint.length_mm) & (along < cfg.lookahead_mm), 1]
+        half_body = self.footprint.width_mm / 2
+        reach = floor.hallway.width_mm / 2 - half_body - cfg.side_clearance_mm
+        clearance = half_body + cfg.obstacle_clearance_mm + cfg.costmap_resolution_mm
+        step = cfg.costmap_resolution_mm
+        offsets = sorted(np.arange(-reach, reach + 1.0, step), key=lambda d: abs(d - lane))
+        for d in offsets:
+            if not np.any(np.abs(near - d) < clearance):
+                return float(d)
+        return None
+
+    def obstacle_ahead(
+        self, floor: Floor, s: float, lane: float, direction: float, now: float
+    ) -> Sighting | None:
+        """The nearest obstacle cell in the lane ahead and whether it has stood still."""
+        xs, ys, since = self.costmap.obstacles(now)
+        if xs.size == 0:
+            return None
+        sd = np.array([floor.to_hallway(x, y) for x, y in zip(xs, ys, strict=True)])
+        along = (sd[:, 0] - s) * direction
+        half = self.footprint.width_mm / 2 + self.cfg.obstacle_clearance_mm
+        behind = self.footprint.length_mm / 2
+        in_lane = (
+            (np.abs(sd[:, 1] - lane) < half) & (along > -behind) & (along < self.cfg.lookahead_mm)
+        )
+        if not in_lane.any():
+            return None
+        nearest = int(np.argmin(np.where(in_lane, along, np.inf)))
+        near = in_lane & (along < along[nearest] + self.cfg.static_tolerance_mm)
+        static = bool(np.all(since[near] <= now - self.cfg.static_confirm_s))
+        return Sighting(float(sd[nearest, 0]), static)

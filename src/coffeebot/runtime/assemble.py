@@ -1,0 +1,148 @@
+"""One function decides which modules run and how they are wired: :func:`assemble`.
+
+The robot (:mod:`coffeebot.runtime.robot`) and the simulated robot
+(:mod:`coffeebot.runtime.sim`) differ only in what they pass in: where the I2C bus comes
+from, the serial ports in the config, modules that run before the drivers (the simulated
+world), an elevator interface and the simulator's true pose for the live map. Either way
+every module reads time from the board's clock.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from coffeebot.board import Board
+from coffeebot.clock import Clock
+from coffeebot.config import RobotConfig
+from coffeebot.daemon import Daemon
+from coffeebot.floorplan import FloorPlan
+from coffeebot.hardware.i2c import I2CBus
+from coffeebot.hardware.selfcheck import service_check
+from coffeebot.messages import ALL_TOPICS, PoseEstimate
+from coffeebot.modules.angle import AngleModule
+from coffeebot.modules.base import Module
+from coffeebot.modules.collision import CollisionModule
+from coffeebot.modules.door import DoorModule
+from coffeebot.modules.elevator import ElevatorInterface, ElevatorModule
+from coffeebot.modules.motion import MotionModule
+from coffeebot.modules.motor_driver import MotorDriver
+from coffeebot.modules.navigation import NavigationModule
+from coffeebot.modules.orders import OrdersModule
+from coffeebot.modules.state import StateModule
+from coffeebot.modules.tof_poller import TofPoller
+from coffeebot.modules.uwb_reader import UwbReader
+from coffeebot.runtime.web import TruePose, web_module
+from coffeebot.store import OrderStore
+from coffeebot.systemd import SelfCheck
+
+ExtraModules = Callable[["Runtime"], Sequence[Module]]
+"""Modules a caller adds once the runtime exists (the scenario driver, test probes)."""
+
+
+@dataclass
+class Runtime:
+    """Everything one daemon run is made of."""
+
+    config: RobotConfig
+    """The configuration the modules were built from (in simulation, with the pty ports)."""
+    plan: FloorPlan
+    board: Board
+    store: OrderStore
+    orders: OrdersModule
+    self_check: SelfCheck
+    daemon: Daemon = field(init=False)
+    """Made last, from every module; modules that need it call :meth:`request_stop`."""
+
+    def request_stop(self, reason: str) -> None:
+        self.daemon.request_stop(reason)
+
+    def module(self, name: str) -> Module:
+        return self.daemon.states[name].module
+
+
+def navigation_modules(
+    config: RobotConfig, plan: FloorPlan, elevator: ElevatorInterface | None = None
+) -> list[Module]:
+    """Navigation and motion: the only publishers of ``nav/instruction`` and
+    ``motor/command``. Without an elevator interface (none on the robot yet) navigation asks
+    an operator to confirm each elevator step."""
+    modules: list[Module] = [NavigationModule(config, plan), MotionModule(config, plan)]
+    if elevator is not None:
+        modules.append(ElevatorModule(elevator))
+    return modules
+
+
+def robot_modules(
+    config: RobotConfig,
+    plan: FloorPlan,
+    open_i2c: Callable[[], I2CBus],
+    start: PoseEstimate | None,
+) -> list[Module]:
+    """Drivers, perception and state: the modules every run has, in start order."""
+    return [
+        TofPoller(config.i2c, config.tof, open_i2c),
+        UwbReader(config.uwb),
+        MotorDriver(config.motor),
+        CollisionModule(config, plan),
+        AngleModule(config, plan),
+        DoorModule(config, plan),
+        StateModule(config, plan, start=start),
+    ]
+
+
+def assemble(
+    config: RobotConfig,
+    plan: FloorPlan,
+    *,
+    clock: Clock,
+    open_i2c: Callable[[], I2CBus],
+    store_path: Path,
+    kernel_hz: Callable[[], int | None] | None = None,
+    start: PoseEstimate | None = None,
+    before: Sequence[Module] = (),
+    elevator: ElevatorInterface | None = None,
+    true_pose: TruePose | None = None,
+    extra: ExtraModules | None = None,
+    web: bool = True,
+) -> Runtime:
+    """Build the board and every module from ``config`` and ``plan``.
+
+    ``kernel_hz``: the I2C bus clock the kernel runs, for the self-check (a real bus only);
+    ``before``: modules that start ahead of the drivers (the simulated world);
+    ``elevator``: the building's elevator, if the robot can talk to it; ``true_pose``: a pose
+    the live map draws beside the estimate (the simulator's truth); ``web``: serve the UI.
+    """
+    board = Board(ALL_TOPICS, clock=clock)
+    store = OrderStore(store_path)
+    orders = OrdersModule(store)
+    modules: list[Module] = [*before]
+    modules += robot_modules(config, plan, open_i2c, start)
+    modules += navigation_modules(config, plan, elevator)
+    modules.append(orders)
+    runtime = Runtime(
+        config=config,
+        plan=plan,
+        board=board,
+        store=store,
+        orders=orders,
+        self_check=service_check(config, open_i2c, kernel_hz),
+    )
+    if web:
+        modules.append(
+            web_module(
+                config,
+                plan,
+                board,
+                orders,
+                # The daemon is made below, from every module.
+                modules=lambda: runtime.daemon.modules,
+                health=lambda: runtime.daemon.health(),
+                true_pose=true_pose,
+            )
+        )
+    if extra is not None:
+        modules += extra(runtime)
+    runtime.daemon = Daemon(board, modules, supervision=config.supervision)
+    return runtime

@@ -1,0 +1,87 @@
+"""The daemon on the simulated robot: a :class:`~coffeebot.sim.simulation.Simulation` (the
+world behind a simulated I2C bus and two pty devices) under the very same modules, plus the
+``world`` module that steps it, the simulated elevator and the true pose on the live map."""
+
+from __future__ import annotations
+
+import contextlib
+import tempfile
+from collections.abc import AsyncIterator, Callable, Sequence
+from pathlib import Path
+
+from coffeebot.clock import ScaledClock
+from coffeebot.config import RobotConfig
+from coffeebot.floorplan import FloorPlan
+from coffeebot.messages import PoseEstimate
+from coffeebot.modules.base import Module
+from coffeebot.runtime.assemble import Runtime, assemble
+from coffeebot.sim.simulation import SimElevatorLink, SimSetup, Simulation, WorldModule
+from coffeebot.sim.world import RobotSpec, World
+from coffeebot.sim.world.elevator import SimElevator
+from coffeebot.web.livemap import MapPose
+
+SimExtraModules = Callable[[Runtime, Simulation], Sequence[Module]]
+"""Modules a caller adds once the runtime and its simulation exist (a scenario's driver)."""
+
+
+def true_pose(sim: Simulation) -> Callable[[], MapPose]:
+    def pose() -> MapPose:
+        with sim.lock:
+            t, level = sim.world.pose, sim.world.floor_level
+        return MapPose(x_mm=t.x_mm, y_mm=t.y_mm, heading_deg=t.heading_deg, floor=level)
+
+    return pose
+
+
+@contextlib.asynccontextmanager
+async def build_sim(
+    config: RobotConfig,
+    plan: FloorPlan,
+    setup: SimSetup,
+    extra: SimExtraModules | None = None,
+    web: bool = True,
+) -> AsyncIterator[tuple[Runtime, Simulation]]:
+    """The daemon on the simulated robot, and its simulation; the devices run while the
+    context is open and the order store lives in a temporary directory (each run starts with
+    an empty queue)."""
+    clock = ScaledClock(setup.speed)
+    world = World(
+        plan,
+        RobotSpec.from_config(config),
+        floor=setup.floor,
+        pose=setup.pose,
+        obstacles=setup.obstacles,
+        seed=setup.seed,
+        elevator=SimElevator(plan, car_floor=setup.floor),
+    )
+    sim = Simulation(world, config, clock, setup.faults, speed=setup.speed)
+    start = PoseEstimate(
+        x_mm=setup.pose.x_mm,
+        y_mm=setup.pose.y_mm,
+        heading_deg=setup.pose.heading_deg,
+        floor=setup.floor,
+        sigma_x_mm=50.0,
+        sigma_y_mm=50.0,
+        sigma_heading_deg=5.0,
+    )
+    with tempfile.TemporaryDirectory(prefix="coffeebot-sim-") as tmp:
+        sim.start()
+        try:
+            yield (
+                assemble(
+                    sim.config,
+                    plan,
+                    clock=clock,
+                    open_i2c=lambda: sim.tof.bus,
+                    store_path=Path(tmp) / "orders.sqlite3",
+                    start=start,
+                    before=[WorldModule(sim)],
+                    elevator=SimElevatorLink(sim),
+                    true_pose=true_pose(sim),
+                    extra=None if extra is None else lambda runtime: extra(runtime, sim),
+                    web=web,
+                ),
+                sim,
+            )
+        finally:
+            sim.close()
