@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
-from coffeebot.sim.world import RobotSpec
-from coffeebot.sim.world.contact import body_region, judge_contact
+from coffeebot.sim.world import RobotSpec, Surfaces
+from coffeebot.sim.world.contact import body_region, contact_normal, judge_contact
 from coffeebot.sim.world.robot import BodyState
 
 ROBOT = RobotSpec()  # 610 x 510 mm, driven axle 150 mm ahead of the centre
@@ -74,6 +75,28 @@ def test_the_judgement_follows_the_heading() -> None:
     assert judge_contact("box", (0.0, FRONT_X), heading, ROBOT).region == "front"
     left = judge_contact("box", (-LEFT_Y, 0.0), heading, ROBOT)
     assert left.region == "left side" and left.robot_towards_mm_s == pytest.approx(0.0, abs=1e-6)
+
+
+def test_the_normal_comes_from_the_touched_shape_where_there_is_one() -> None:
+    """A person beside the rear-right corner, stepping towards it: the body turning left
+    swings that corner into them. The corner's diagonal would say the corner moves away (the
+    body drives on); the torso's axis, straight to the right, says it moves into them."""
+    torso_at = (-FRONT_X + 20.0, -LEFT_Y - 180.0)
+    torso = Surfaces(np.zeros((0, 6)), (), np.array([[*torso_at, 180.0, 850.0, 1750.0]]), ("t",))
+    point = (-FRONT_X + 20.0, -LEFT_Y)
+    turning = body(speed=500.0, yaw_rate=0.1)
+    assert contact_normal(torso, point, turning) == pytest.approx((0.0, -1.0))
+    guessed = judge_contact("person torso", point, turning, ROBOT, (0.0, 100.0))
+    judged = judge_contact("person torso", point, turning, ROBOT, (0.0, 100.0), torso)
+    assert guessed.cause == "walked_into_robot"
+    assert judged.cause == "robot_caused" and judged.robot_towards_mm_s > 20.0
+
+
+def test_a_touched_wall_faces_away_from_the_body() -> None:
+    wall = Surfaces(
+        np.array([[-1000.0, LEFT_Y, 1000.0, LEFT_Y, 0.0, 2700.0]]), ("w",), np.zeros((0, 5)), ()
+    )
+    assert contact_normal(wall, (0.0, LEFT_Y), body()) == pytest.approx((0.0, 1.0))
 
 
 @pytest.mark.parametrize(

@@ -12,7 +12,9 @@ argument.
 
 Velocities are the body's true ones just before the touch (world ground truth): the body
 turns about its driven axle, so a turning robot's corners move even when its centre barely
-does.
+does. "Towards" is along the contact normal: from the body to a touched pole's axis, or a
+touched face's normal; without the touched shape, the normal of the body's face (diagonal
+at a corner).
 """
 
 from __future__ import annotations
@@ -21,6 +23,10 @@ import math
 from dataclasses import dataclass
 from typing import Literal
 
+import numpy as np
+
+from coffeebot.floorplan import segment_distances
+from coffeebot.sim.world.geometry import Surfaces
 from coffeebot.sim.world.robot import BodyState, RobotSpec
 
 MOVING_MM_S = 20.0
@@ -74,20 +80,49 @@ def body_region(
     return f"{side} side", (0.0, ny)
 
 
+def contact_normal(
+    touched: Surfaces, point: tuple[float, float], body: BodyState
+) -> tuple[float, float] | None:
+    """The floor-frame direction from the body into what it touched at ``point``: towards
+    the axis of the nearest touched cylinder, or the nearest touched segment's normal facing
+    away from the body's centre. None when the shape does not tell (nothing given, or a
+    pole's axis at the touch point)."""
+    px, py = point
+    best: tuple[float, tuple[float, float] | None] = (math.inf, None)
+    for cx, cy, r, _zb, _zt in touched.cylinders:
+        gap = math.hypot(cx - px, cy - py)
+        if gap > 1e-6 and abs(gap - r) < best[0]:
+            best = (abs(gap - r), ((cx - px) / gap, (cy - py) / gap))
+    segments = touched.segments
+    if len(segments):
+        distances = segment_distances(segments, px, py)
+        i = int(np.argmin(distances))
+        x0, y0, x1, y1 = segments[i, :4]
+        length = math.hypot(x1 - x0, y1 - y0)
+        if distances[i] < best[0] and length > 1e-6:
+            nx, ny = (y0 - y1) / length, (x1 - x0) / length
+            if nx * (px - body.x) + ny * (py - body.y) < 0:
+                nx, ny = -nx, -ny
+            best = (float(distances[i]), (nx, ny))
+    return best[1]
+
+
 def judge_contact(
     element: str,
     point: tuple[float, float],
     body: BodyState,
     robot: RobotSpec,
     object_velocity: tuple[float, float] = (0.0, 0.0),
+    touched: Surfaces | None = None,
 ) -> ContactJudgement:
     """Judge one touch at floor-frame ``point`` by a body in state ``body``; the object's
     velocity at the touch is ``object_velocity`` (mm/s, floor frame; zero for walls and
-    anything standing)."""
+    anything standing) and ``touched`` its shape then, if known."""
     c, s = math.cos(body.theta), math.sin(body.theta)
     dx, dy = point[0] - body.x, point[1] - body.y
     region, (nx, ny) = body_region(c * dx + s * dy, -s * dx + c * dy, robot)
-    normal = (c * nx - s * ny, s * nx + c * ny)
+    found = None if touched is None else contact_normal(touched, point, body)
+    normal = found or (c * nx - s * ny, s * nx + c * ny)
     # The body turns about its driven axle: velocity of the touched point.
     ax, ay = body.x + robot.axle_x_mm * c, body.y + robot.axle_x_mm * s
     rx, ry = point[0] - ax, point[1] - ay
