@@ -5,6 +5,7 @@
     python bench/safety.py --quick          # a small subset, a few minutes
     python bench/safety.py --case crossing  # only runs whose name contains this (repeatable)
     python bench/safety.py --workers 2      # two runs at once, one process each
+    python bench/safety.py --table out.json # the tables of a run saved with --save out.json
 
 Every run is the whole daemon on the simulated robot (``coffeebot.runtime``'s simulated
 assembly): the ToF poller over the simulated I2C bus, collision, state, motion, the motor
@@ -15,14 +16,16 @@ for a hallway leg: so the speed is exactly the one under test and the event happ
 speed where the case puts it (a delivery route drives at cruise speed and slows for doors
 and turns).
 
-Cases, each at every speed the robot may drive (``robot_speeds``: 200 mm/s, cruise, maximum
-and halfway between): the seed's obstacle set head-on and off-centre; a person crossing out
-of the side hallway at 500, 1000 and 1600 mm/s (ISO 13855's walking speed), from the left
-and, driving the other way, from the right, at 45, 90 and 135 degrees to the direction of
-travel, entering the robot's path 1 m and 2 m ahead; a person stepping out of an open office
-door 1 m ahead, on either side; a person walking towards the robot in its lane; one who
-overtakes it and stops in front; a six-year-old child standing in the lane and running
-across; a swivel chair pushed into the lane; a box dropped into the lane 1 m and 2 m ahead.
+Cases, each at every speed the robot may drive (``robot_speeds``: 200 mm/s, the cruise speed
+and the motors' maximum; ``--speeds`` for others): the seed's obstacle set head-on and
+off-centre; a person crossing out of the side hallway at 500, 1000 and 1600 mm/s (ISO
+13855's walking speed), from the left and, driving the other way, from the right, at 45, 90
+and 135 degrees to the direction of travel, entering the robot's path 1 m and 2 m ahead; a
+person stepping out of an open office door 1 m ahead, on either side; a person walking
+towards the robot in its lane; one who overtakes it and stops in front; a six-year-old child
+standing in the lane and running across; a swivel chair pushed into the lane; a box dropped
+into the lane 1 m and 2 m ahead.
+
 People start when the robot comes within a distance computed for the speed under test
 (``ObstacleSpec.trigger_mm``), so the event happens as designed whatever the daemon's start-up
 took; each run reports how far ahead the obstacle actually entered the robot's path and the
@@ -54,6 +57,7 @@ import contextlib
 import json
 import logging
 import math
+import os
 import sys
 import time
 import zlib
@@ -324,11 +328,12 @@ def towards_case(walk_mm_s: float) -> Callable[[Lane, float], Setup]:
 
 
 def overtake_case(lane: Lane, speed: float) -> Setup:
-    """Someone 600 mm/s faster overtakes on the left, cuts in and stops in the lane once
-    they are 1.2 m ahead of the front (if the robot keeps its speed)."""
+    """Someone 1 m/s faster (hurrying, jogging past a fast robot) overtakes on the left,
+    cuts in and stops in the lane once they are 1.2 m ahead of the front (if the robot keeps
+    its speed). They start behind the robot's rear, out of its cones, once it is at speed."""
     start = lane.ahead(EVENT_S_MM, -6000.0)
     trigger_s = lane.ahead(start, lane.runup_mm(speed) + 800.0)
-    trigger_mm, side_lat, walk = 300.0, 300.0, speed + 600.0
+    trigger_mm, side_lat, walk = 300.0, 300.0, speed + 1000.0
     person_s = lane.ahead(start, -1000.0)
     front_at_trigger = lane.ahead(trigger_s, 2 * lane.half_length_mm - trigger_mm)
     gap = (front_at_trigger - person_s) * lane.direction + 1200.0
@@ -662,8 +667,8 @@ def _element(world: World, collision: Any) -> Surfaces:
     """The touched element's surfaces at the moment of the touch."""
     everything = world.surfaces(collision.t_s)
     return everything.take(
-        np.array([i for i, e in enumerate(everything.segment_ids) if e == collision.element]),
-        np.array([i for i, e in enumerate(everything.cylinder_ids) if e == collision.element]),
+        np.flatnonzero(np.array(everything.segment_ids, dtype=object) == collision.element),
+        np.flatnonzero(np.array(everything.cylinder_ids, dtype=object) == collision.element),
     )
 
 
@@ -750,6 +755,12 @@ def judge_run(sim: Simulation, record: Record, config: RobotConfig) -> dict[str,
     brake_s = None if hazard_s is None else braking_start(commands, hazard_s, speed_then or 0.0)
     seen_brake_s = None if seen_s is None else braking_start(commands, seen_s, 0.0)
     touched = judged_contacts(world)
+    reaction_end = brake_s if brake_s is not None else world.t_s
+    if touched:
+        reaction_end = min(reaction_end, touched[0]["t"])
+    starved = hazard_s is not None and any(
+        t < reaction_end and t + gap > hazard_s for t, gap in record.stalls
+    )
     return {
         "outcome": record.ended,
         "contacts": touched,
@@ -764,6 +775,7 @@ def judge_run(sim: Simulation, record: Record, config: RobotConfig) -> dict[str,
         "stop_s": _round(None if hazard_s is None else first_stop(commands, hazard_s), 3),
         "stop_latency_ms": _ms(hazard_s, brake_s),
         "never_braked": hazard_s is not None and brake_s is None,
+        "starved_in_reaction": starved,
         "visible_to_brake_ms": _ms(seen_s, seen_brake_s),
         "safety_stops": len(record.stops_after(record.first_moving_s())),
         **record.stall_fields(),
@@ -1067,10 +1079,14 @@ RUNNERS: dict[str, Callable[..., dict[str, Any]]] = {
 
 
 def _run_job(job: tuple[str, tuple[Any, ...], float]) -> tuple[str, dict[str, Any]]:
+    """One run in its own process; a run that fails is reported, not lost with the rest."""
     kind, args, sim_speed = job
     # Safety stops are warnings, and a run has many: only errors (faults) reach stderr.
     logging.getLogger("coffeebot").setLevel(logging.ERROR)
-    return kind, RUNNERS[kind](*args, sim_speed)
+    try:
+        return kind, RUNNERS[kind](*args, sim_speed)
+    except Exception as exc:  # reported with the results, and in the exit code
+        return "failed", {"run": f"{kind} {args}", "error": f"{type(exc).__name__}: {exc}"}
 
 
 def jobs(selected: Sequence[tuple[str, float]], extras: bool) -> list[Job]:
@@ -1153,6 +1169,7 @@ def summarize(results: Sequence[tuple[str, dict[str, Any]]]) -> dict[str, Any]:
             (r["min_clearance_mm"] for r in rows if r["min_clearance_mm"] is not None),
             default=None,
         ),
+        "failed_runs": [r for kind, r in results if kind == "failed"],
         "rows": rows,
         "hallway": hallway,
         "idle": idle,
@@ -1184,10 +1201,12 @@ def _cell(row: dict[str, Any]) -> str:
         text += ", never braked"
     elif row["stop_latency_ms"] is not None:
         text += f", {row['stop_latency_ms']:.0f} ms"
+    if row["starved_in_reaction"]:
+        text += " (starved)"
     return text + (" (slowed before)" if slowed_before(row) else "")
 
 
-def table(result: dict[str, Any], elapsed_s: float) -> str:
+def table(result: dict[str, Any]) -> str:
     rows = result["rows"]
     speeds = sorted({r["speed_mm_s"] for r in rows})
     lat = result["stop_latency_ms_p95"]
@@ -1216,7 +1235,8 @@ def table(result: dict[str, Any], elapsed_s: float) -> str:
         "Per case and robot speed: the first robot-caused contact (where on the body, "
         "relative speed) or the least clearance, then the stop latency (from visible and in "
         "the protective field to the first braking command) where the obstacle became a "
-        "hazard; (slowed before): the robot was below 90 % of its speed when the walk began.",
+        "hazard; (starved): a gap in the verdicts overlapped that reaction; (slowed before): "
+        "the robot was below 90 % of its speed when the walk began.",
         "",
         "| case | " + " | ".join(f"{v:.0f} mm/s" for v in speeds) + " |",
         "|---|" + "---|" * len(speeds),
@@ -1259,15 +1279,16 @@ def table(result: dict[str, Any], elapsed_s: float) -> str:
         lines += ["", "| held with a way out | held s | then | held by |", "|---|---|---|---|"]
         for h in result["held"]:
             lines.append(f"| {h['case']} | {h['held_s']} | {h['how']} | {h['held_by']} |")
-    lines.append(f"\n(elapsed {elapsed_s / 60:.1f} min)")
+    lines += [f"- **run failed**: {f['run']}: {f['error']}" for f in result["failed_runs"]]
+    load = ", ".join(map(str, result["load_average_after"]))
+    lines.append(f"\n(elapsed {result['elapsed_s'] / 60:.1f} min; load average after: {load})")
     return "\n".join(lines)
 
 
 def robot_speeds(config: RobotConfig) -> list[float]:
     """The speeds the robot may drive, from 200 mm/s to the motors' maximum (the board
-    file's): 200, the cruise speed, the maximum, and one halfway from cruise to maximum."""
-    cruise, top = config.motion.cruise_speed_mm_s, config.motor.max_speed_mm_s
-    return sorted({200.0, cruise, (cruise + top) / 2, top})
+    file's), with the cruise speed between (``--speeds`` adds others)."""
+    return sorted({200.0, config.motion.cruise_speed_mm_s, config.motor.max_speed_mm_s})
 
 
 def select(args: argparse.Namespace) -> list[Job]:
@@ -1290,7 +1311,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--speeds", type=float, nargs="+", help="robot speeds, mm/s")
     parser.add_argument("--workers", type=int, default=1, help="runs at once, one process each")
     parser.add_argument("--speed", type=float, default=1.0, help="simulated time per wall time")
+    parser.add_argument("--save", type=Path, help="also write the JSON object to this file")
+    parser.add_argument("--table", type=Path, help="print the tables of a saved JSON object")
     args = parser.parse_args(argv)
+    if args.table is not None:
+        print(table(json.loads(args.table.read_text())))
+        return 0
     selected = select(args)
     if not selected:
         print(f"--case {' '.join(args.case)!r}: no run matches", file=sys.stderr)
@@ -1301,12 +1327,15 @@ def main(argv: list[str] | None = None) -> int:
         results = list(pool.map(_run_job, [(kind, a, args.speed) for kind, a in selected]))
     result = summarize(results)
     elapsed = time.monotonic() - started
+    result["elapsed_s"] = round(elapsed)
+    result["load_average_after"] = [round(x, 2) for x in os.getloadavg()]
+    if args.save is not None:
+        args.save.write_text(json.dumps(result))
     if args.json:
-        result["elapsed_s"] = round(elapsed)
         print(json.dumps(result))
     else:
-        print(table(result, elapsed))
-    return 0
+        print(table(result))
+    return 1 if result["failed_runs"] else 0
 
 
 if __name__ == "__main__":

@@ -128,8 +128,8 @@ def judge_contact(
     rx, ry = point[0] - ax, point[1] - ay
     vx = body.speed_mm_s * c - body.yaw_rate_rad_s * ry
     vy = body.speed_mm_s * s + body.yaw_rate_rad_s * rx
-    robot_towards = vx * normal[0] + vy * normal[1]
-    object_towards = -(object_velocity[0] * normal[0] + object_velocity[1] * normal[1])
+    robot_towards = float(vx * normal[0] + vy * normal[1])
+    object_towards = -float(object_velocity[0] * normal[0] + object_velocity[1] * normal[1])
     walked_into = robot_towards <= MOVING_MM_S and object_towards > MOVING_MM_S
     return ContactJudgement(
         element=element,
