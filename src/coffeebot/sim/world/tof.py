@@ -198,6 +198,9 @@ class SensorMount(BaseModel):
     y_mm: float
     yaw_deg: float
     height_mm: float = Field(250.0, gt=0)
+    fov_deg: float = Field(
+        27.0, ge=15, le=27, description="nominal cone of the configured ROI (ground truth)"
+    )
 
 
 def flat_target(

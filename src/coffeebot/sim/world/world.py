@@ -24,7 +24,7 @@ from coffeebot.sim.world.elevator import SimElevator
 from coffeebot.sim.world.geometry import Surfaces, footprint_contacts
 from coffeebot.sim.world.materials import element_reflectance
 from coffeebot.sim.world.obstacles import ObstacleSpec, obstacle_surfaces
-from coffeebot.sim.world.robot import Pose, RobotBody, RobotSpec
+from coffeebot.sim.world.robot import BodyState, Pose, RobotBody, RobotSpec
 from coffeebot.sim.world.tof import (
     DEFAULT_SETUP,
     ConeOptics,
@@ -65,6 +65,8 @@ class Collision:
     x_mm: float
     y_mm: float
     speed_mm_s: float
+    body: BodyState | None = None
+    """The body just before the touch (pose, signed speed, yaw rate): where it was hit."""
 
 
 class World:
@@ -105,6 +107,10 @@ class World:
         self._command_until = math.inf
         """The motor controller's watchdog deadline for the wheel set-point (world time)."""
         self.collisions: list[Collision] = []
+        self.obstacle_start_s: list[float | None] = [
+            None if o.trigger_mm is not None else 0.0 for o in self.obstacles
+        ]
+        """World time at which each obstacle's own clock started (None: not triggered yet)."""
         self._touching: set[str] = set()
         self._layers: Layers | None = None
         self._returns: dict[tuple[int, SpadRoi], Returns] = {}
@@ -122,15 +128,31 @@ class World:
         """Ground-truth pose of the body centre."""
         return self.body.pose
 
-    def surfaces(self) -> Surfaces:
-        """Everything on the current floor at the current time."""
+    def surfaces(self, t_s: float | None = None) -> Surfaces:
+        """Everything on the current floor now, or at an earlier world time ``t_s`` (the
+        obstacles are functions of their clocks; the elevator is as it is now)."""
         surfaces = self._static_surfaces(self.floor_level)
         if self.elevator is not None:
             surfaces = surfaces + self.elevator.surfaces(self.floor_level)
-        for obstacle in self.obstacles:
-            if obstacle.moving and obstacle.floor == self.floor_level:
-                surfaces = surfaces + obstacle_surfaces(obstacle, self.t_s)
+        for i, obstacle in enumerate(self.obstacles):
+            if obstacle.timed and obstacle.floor == self.floor_level:
+                surfaces = surfaces + self.obstacle_at(i, t_s)
         return surfaces
+
+    def obstacle_clock_s(self, index: int, t_s: float | None = None) -> float | None:
+        """Obstacle ``index``'s own time now or at world time ``t_s`` (None: its trigger had
+        not fired yet)."""
+        start = self.obstacle_start_s[index]
+        t = self.t_s if t_s is None else t_s
+        return None if start is None or t < start else t - start
+
+    def obstacle_at(self, index: int, t_s: float | None = None) -> Surfaces:
+        """Obstacle ``index`` now or at world time ``t_s``; empty while it is absent."""
+        obstacle = self.obstacles[index]
+        clock = self.obstacle_clock_s(index, t_s)
+        if not obstacle.present_at(clock):
+            return Surfaces.empty()
+        return obstacle_surfaces(obstacle, clock or 0.0)
 
     def _static_surfaces(self, level: int) -> Surfaces:
         if level not in self._static:
@@ -147,7 +169,7 @@ class World:
                 np.array([element_reflectance(e) for e in elements]),
             )
             for obstacle in self.obstacles:
-                if obstacle.floor == level and not obstacle.moving:
+                if obstacle.floor == level and not obstacle.timed:
                     surfaces = surfaces + obstacle_surfaces(obstacle)
             self._static[level] = surfaces
         return self._static[level]
@@ -180,7 +202,19 @@ class World:
                 if self._touching:
                     clear_of = self._contacts(proposed.x, proposed.y, proposed.theta, _RELEASE_MM)
                     self._touching &= clear_of.keys()
+            self._fire_triggers()
         self._forget_returns()
+
+    def _fire_triggers(self) -> None:
+        """Start the clock of every obstacle whose trigger point the robot has come close to."""
+        s = self.body.state
+        for i, obstacle in enumerate(self.obstacles):
+            if self.obstacle_start_s[i] is not None or obstacle.trigger_mm is None:
+                continue
+            at = obstacle.trigger_at or (obstacle.x_mm, obstacle.y_mm)
+            near = math.dist(at, (s.x, s.y)) <= obstacle.trigger_mm
+            if near and obstacle.floor == self.floor_level:
+                self.obstacle_start_s[i] = self.t_s
 
     def place_robot(self, pose: Pose, floor: int | None = None) -> None:
         """Put the robot at rest somewhere, on another floor after an elevator ride."""
@@ -215,7 +249,9 @@ class World:
         speed = abs(self.body.state.speed_mm_s)
         for element, (x, y) in contacts.items():
             if element not in self._touching:
-                self.collisions.append(Collision(self.t_s, self.floor_level, element, x, y, speed))
+                self.collisions.append(
+                    Collision(self.t_s, self.floor_level, element, x, y, speed, self.body.state)
+                )
         self._touching |= contacts.keys()
 
     def clearance_mm(self, surfaces: Surfaces | None = None, radius_mm: float = 2000.0) -> float:
