@@ -272,8 +272,9 @@ class CollisionMonitor:
         speed: float,
         narrow: bool,
         now: float,
-        explain: Explainer | None,
+        wall: np.ndarray | None,
     ) -> _Finding:
+        """``wall``: where the plan's walls put this sensor's reading, if they explain it."""
         cfg = self.cfg
         if reading is not None and (not reading.healthy or reading.status in FAILED):
             self._missed[sensor.id] = cfg.stale_cycles
@@ -306,8 +307,7 @@ class CollisionMonitor:
             return _Finding(SafetyState.GO, sensor, None, "clear", self.max_speed_mm_s)
         gap: float = distance
         if sensor.face == "front":
-            where = None if explain is None or seen else explain(sensor, distance)
-            ahead = self.ahead_mm(sensor, distance, where)
+            ahead = self.ahead_mm(sensor, distance, None if seen else wall)
             if ahead is None:  # a glance outside the corridor: not in the way
                 return _Finding(SafetyState.GO, sensor, None, "clear", self.max_speed_mm_s)
             gap = ahead
@@ -342,6 +342,21 @@ class CollisionMonitor:
         return _Finding(
             SafetyState.GO, sensor, distance, "clear", self.max_speed_mm_s, gap, sigma_mm=sigma
         )
+
+    def _explained(
+        self, readings: dict[int, RangeReading], explain: Explainer | None
+    ) -> dict[int, np.ndarray]:
+        """Per sensor, where the plan's walls put its valid reading, if they explain it."""
+        if explain is None:
+            return {}
+        found = {}
+        for sensor in self.sensors.values():
+            distance = valid_distance(readings.get(sensor.id))
+            if distance is not None:
+                points = explain(sensor, distance)
+                if points is not None:
+                    found[sensor.id] = points
+        return found
 
     def _intrusion(self, speed: float) -> _Finding | None:
         """A mover predicted in the corridor ahead: stop if the robot could not stop short of
@@ -385,11 +400,15 @@ class CollisionMonitor:
             self._travel_mm += max(0.0, speed) * (now - self._last_t)
             self._turned_deg += abs(yaw_rate_dps) * (now - self._last_t)
         self._last_t = now
-        self.tracker.update(scan, 0.0 if speed_mm_s is None else speed_mm_s, yaw_rate_dps)
         readings = {r.sensor: r for r in scan.readings}
+        walls = self._explained(readings, explain)
+        # What the plan's walls explain is a wall, not someone walking: it is not tracked.
+        self.tracker.update(
+            scan, 0.0 if speed_mm_s is None else speed_mm_s, yaw_rate_dps, skip=set(walls)
+        )
         narrow = self.narrow(readings)
         findings = [
-            self._assess(s, readings.get(s.id), speed, s.id in narrow, now, explain)
+            self._assess(s, readings.get(s.id), speed, s.id in narrow, now, walls.get(s.id))
             for s in self.sensors.values()
         ]
         intrusion = self._intrusion(speed)

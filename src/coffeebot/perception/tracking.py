@@ -17,7 +17,7 @@ its speed, whether and when a mover enters the corridor ahead of the body. A sta
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Collection, Iterable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -103,13 +103,15 @@ class ReturnTracker:
         self._next_id = 1
         self._last_t: float | None = None
 
-    def sightings(self, scan: RangeScan) -> list[Sighting]:
-        """Each healthy valid reading within ``max_range_mm`` as a point in the odometry frame."""
+    def sightings(self, scan: RangeScan, skip: Collection[int] = ()) -> list[Sighting]:
+        """Each healthy valid reading within ``max_range_mm`` as a point in the odometry frame,
+        but those of the sensors in ``skip``."""
         found = []
         for reading in scan.readings:
             sensor = self.sensors.get(reading.sensor)
             if (
                 sensor is None
+                or reading.sensor in skip
                 or not reading.healthy
                 or reading.status is not ReadingStatus.VALID
                 or reading.distance_mm is None
@@ -130,15 +132,22 @@ class ReturnTracker:
             found.append(Sighting(x, y, covariance, reading.sensor))
         return found
 
-    def update(self, scan: RangeScan, speed_mm_s: float, yaw_rate_dps: float) -> list[Track]:
-        """Advance by the robot's motion since the last scan, associate, correct, prune."""
+    def update(
+        self,
+        scan: RangeScan,
+        speed_mm_s: float,
+        yaw_rate_dps: float,
+        skip: Collection[int] = (),
+    ) -> list[Track]:
+        """Advance by the robot's motion since the last scan, associate, correct, prune;
+        the readings of the sensors in ``skip`` (the walls) are left out."""
         now = scan.cycle_start_s
         dt = 0.0 if self._last_t is None else max(0.0, now - self._last_t)
         self._last_t = now
         self.odometry.advance(speed_mm_s, yaw_rate_dps, dt)
         for track in self.tracks:
             self._predict(track, dt)
-        sightings = self.sightings(scan)
+        sightings = self.sightings(scan, skip)
         matched = self._associate(sightings)
         used = set()
         for t_index, s_index in matched:
