@@ -1169,7 +1169,11 @@ def summarize(results: Sequence[tuple[str, dict[str, Any]]]) -> dict[str, Any]:
         "idle_stops": sum(r["stops"] for r in idle) if idle else None,
         "held_with_way_out_s_max": max(r["held_s"] for r in held) if held else None,
         "min_clearance_mm": min(
-            (r["min_clearance_mm"] for r in rows if r["min_clearance_mm"] is not None),
+            (
+                r["min_clearance_mm"]
+                for r in rows
+                if not r["contacts"] and r["min_clearance_mm"] is not None
+            ),
             default=None,
         ),
         "failed_runs": [r for kind, r in results if kind == "failed"],
@@ -1283,8 +1287,11 @@ def table(result: dict[str, Any]) -> str:
         for h in result["held"]:
             lines.append(f"| {h['case']} | {h['held_s']} | {h['how']} | {h['held_by']} |")
     lines += [f"- **run failed**: {f['run']}: {f['error']}" for f in result["failed_runs"]]
-    load = ", ".join(map(str, result["load_average_after"]))
-    lines.append(f"\n(elapsed {result['elapsed_s'] / 60:.1f} min; load average after: {load})")
+    load = result["load_average"]
+    lines.append(
+        f"\n(elapsed {result['elapsed_s'] / 60:.1f} min; machine load average (1, 5, 15 min) "
+        f"before {load['before']}, after {load['after']})"
+    )
     return "\n".join(lines)
 
 
@@ -1292,6 +1299,11 @@ def robot_speeds(config: RobotConfig) -> list[float]:
     """The speeds the robot may drive, from 200 mm/s to the motors' maximum (the board
     file's), with the cruise speed between (``--speeds`` adds others)."""
     return sorted({200.0, config.motion.cruise_speed_mm_s, config.motor.max_speed_mm_s})
+
+
+def load_average() -> list[float]:
+    """The machine's load over 1, 5 and 15 minutes: how much else was running."""
+    return [round(x, 2) for x in os.getloadavg()]
 
 
 def select(args: argparse.Namespace) -> list[Job]:
@@ -1324,6 +1336,7 @@ def main(argv: list[str] | None = None) -> int:
     if not selected:
         print(f"--case {' '.join(args.case)!r}: no run matches", file=sys.stderr)
         return 2
+    load_before = load_average()
     started = time.monotonic()
     # A fresh process per run: each daemon starts from nothing, as it does on the robot.
     with ProcessPoolExecutor(max_workers=args.workers, max_tasks_per_child=1) as pool:
@@ -1331,7 +1344,7 @@ def main(argv: list[str] | None = None) -> int:
     result = summarize(results)
     elapsed = time.monotonic() - started
     result["elapsed_s"] = round(elapsed)
-    result["load_average_after"] = [round(x, 2) for x in os.getloadavg()]
+    result["load_average"] = {"before": load_before, "after": load_average()}
     if args.save is not None:
         args.save.write_text(json.dumps(result))
     if args.json:
