@@ -1217,6 +1217,9 @@ def table(result: dict[str, Any]) -> str:
     rows = result["rows"]
     speeds = sorted({r["speed_mm_s"] for r in rows})
     lat = result["stop_latency_ms_p95"]
+    latency = f"{lat} ms" if lat is not None else "-"
+    if lat is None and result["stop_latency_never_braked"]:
+        latency = "never (too many runs never braked)"
     lines = [
         "| figure | value | target |",
         "|---|---|---|",
@@ -1226,7 +1229,7 @@ def table(result: dict[str, Any]) -> str:
         f"| walked into the robot | {result['walked_into_robot']} | (counted apart) |",
         f"| least clearance (runs without contact) | {result['min_clearance_mm']} mm | |",
         f"| stop latency p95 ({result['stop_latency_runs']} runs with a hazard) | "
-        f"{'not reached' if lat is None else f'{lat} ms'} "
+        f"{latency} "
         f"({result['stop_latency_never_braked']} never braked; p50 "
         f"{result['stop_latency_ms_p50']} ms) | <= 100 ms |",
         f"| false stops per 100 m of empty hallway ({result['hallway_driven_m']} m) | "
