@@ -144,12 +144,11 @@ class CollisionConfig(Section):
         None, gt=0, description="speed assumed without fresh odometry; None: motor max speed"
     )
     memory_s: float = Field(
-        0.0,
+        1.5,
         ge=0,
         description="a front return inside the body's corridor keeps blocking this long after "
-        "it drops out of view (0: no memory). Off by default: a remembered wall ahead holds a "
-        "robot that must turn on the spot close to it (the elevator car); 1.5 s cut the "
-        "accuracy bench's collisions further (docs/benchmarks.md)",
+        "it drops out of view (0: no memory): a chair's pole leaves the cones as the robot "
+        "nears it, its seat does not; returns the plan's walls explain are not remembered",
     )
     memory_max_turn_deg: float = Field(
         10.0,

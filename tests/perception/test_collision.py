@@ -101,11 +101,30 @@ def test_hysteresis_keeps_stop_until_clearance_exceeds_radius_plus_margin() -> N
 
 
 def test_obstacle_leaving_gives_clear_again() -> None:
-    m = monitor()
+    m = monitor(memory_s=0)
     m.update(scan(CLEAR, t=0.0), 0, 1)
     assert m.update(scan({**CLEAR, 2: 100}, t=0.1), 0, 2).state is SafetyState.STOP
     status = m.update(scan(CLEAR, t=0.2), 0, 3)
     assert status.state is SafetyState.GO and status.reason == "clear again"
+
+
+def test_a_reading_counts_the_near_end_of_its_reported_spread() -> None:
+    """A blend (a pole before a far wall) reads beyond the pole with a large sigma: the
+    monitor assumes the near end, a clean reading at the same distance keeps its value."""
+    gap_at_400 = 400 * math.cos(math.radians(13.5))  # beyond the 200 mm radius at rest
+
+    def with_sigma(sigma_mm: float) -> SafetyState:
+        readings = scan({**CLEAR, **ahead(400)}).readings
+        blended = [
+            r.model_copy(update={"sigma_mm": sigma_mm}) if r.sensor in (2, 3, 4, 5) else r
+            for r in readings
+        ]
+        m = monitor(slowdown_extra_mm=0, memory_s=0)
+        return m.update(scan(CLEAR).model_copy(update={"readings": blended}), 0, 1).state
+
+    assert gap_at_400 - 1.5 * 5 > 200 and with_sigma(5) is SafetyState.GO
+    assert (400 - 1.5 * 140) * math.cos(math.radians(13.5)) < 200
+    assert with_sigma(140) is SafetyState.STOP
 
 
 def test_with_memory_an_obstacle_leaving_view_clears_only_after_memory_s() -> None:
