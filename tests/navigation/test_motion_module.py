@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 from helpers import CONFIG, PLAN, estimate_at
 
@@ -21,8 +22,12 @@ from coffeebot.messages import (
     EStop,
     Health,
     HealthStatus,
+    MotionState,
     MotionStatus,
     MoveInstruction,
+    RangeReading,
+    RangeScan,
+    ReadingStatus,
     SafetyState,
     StopCause,
 )
@@ -187,4 +192,34 @@ async def test_a_stale_pose_stops_even_a_turn_the_front_stop_allows(rig: Rig) ->
     for _ in range(round(1.0 / CONFIG.motion.period_s)):
         rig.board.publish(COLLISION, held)  # fresh verdicts, but the pose goes stale
         await rig.clock.advance(CONFIG.motion.period_s)
+    assert wheels(rig) == (0.0, 0.0)
+
+
+async def test_held_with_no_way_past_reports_blocked_with_the_reason(rig: Rig) -> None:
+    """A front stop in front of something that fills the hallway: no turn and no lane gets
+    past, so motion says "blocked" (navigation acts on that) instead of an endless stop."""
+    readings = [
+        RangeReading(sensor=s.id, status=ReadingStatus.VALID, distance_mm=450)
+        if s.face == "front"
+        else RangeReading(sensor=s.id, status=ReadingStatus.OUT_OF_BOUNDS)
+        for s in CONFIG.tof.sensors
+    ]
+    scan = RangeScan(cycle_start_s=0.0, cycle_time_s=0.05, readings=readings)
+    s, _ = FLOOR.to_hallway(X, Y)
+    half = FLOOR.hallway.width_mm / 2
+    for d in np.arange(-half + 200, half - 199, 100.0):  # the same wall-to-wall thing
+        x, y = FLOOR.from_hallway(s, float(d))
+        rig.module.costmap.update(scan, FLOOR, x, y, FLOOR.hallway.heading_deg, rig.clock.now())
+    held = CollisionStatus(
+        state=SafetyState.STOP,
+        scan_seq=2,
+        face="front",
+        reason="front obstacle at 450 mm, stop distance 480 mm",
+        blocked_faces=("front",),
+        may_rotate=True,
+    )
+    await rig.run_for(CONFIG.motion.static_confirm_s + 1.0, held)
+    status = rig.board.latest(MOTION_STATUS)
+    assert status is not None and status.msg.state is MotionState.BLOCKED
+    assert "front obstacle at 450 mm" in status.msg.detail
     assert wheels(rig) == (0.0, 0.0)

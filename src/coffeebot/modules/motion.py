@@ -35,6 +35,7 @@ from coffeebot.messages import (
     CollisionStatus,
     EStop,
     HealthStatus,
+    MotionState,
     MotionStatus,
     MotorCommand,
     SafetyState,
@@ -191,7 +192,7 @@ class MotionModule(Module):
         instruction = ctx.board.latest(MOVE_INSTRUCTION)
         ins = None if instruction is None else instruction.msg
         state = ctx.board.latest(CURRENT_STATE)
-        if gate.stop and gate.may_rotate and state is not None:
+        if gate.cause is StopCause.COLLISION_STOP and gate.may_rotate and state is not None:
             # Held by something ahead, but turning on the spot is allowed: the turn the
             # controller wants (into a door, away from a jamb, round a box) may clear it.
             command = self.controller.step(ins, state.msg.pose, now, dt, 0.0)
@@ -201,6 +202,13 @@ class MotionModule(Module):
                     command.status.instruction_id, now, reason, gate.cause
                 )
                 self._send(ctx.board, 0.0, command.yaw_rate_dps, reason, status)
+                return
+            if command.status.state is MotionState.BLOCKED:
+                # Held, and no turn or lane gets past: say so, so navigation can act on it.
+                reason = f"{command.status.detail}; {gate.reason}"
+                status = command.status.model_copy(update={"detail": reason})
+                self.controller.halt()
+                self._send(ctx.board, 0.0, 0.0, reason, status)
                 return
         if gate.stop and gate.may_creep_ahead and state is not None and ins is not None:
             # Held by something beside the body, nothing ahead: straight on keeps the gap.
