@@ -368,6 +368,11 @@ UNDETECTABLE = {
 }
 
 
+def collision_speeds(config: RobotConfig) -> list[int]:
+    """Every 200 mm/s from 200 to the robot's rated speed: what it may drive."""
+    return list(range(200, int(config.motion.max_speed_mm_s) + 1, 200))
+
+
 def bench_collision(
     plan: FloorPlan, config: RobotConfig, spec: RobotSpec, speeds: list[int]
 ) -> dict[str, Any]:
@@ -551,7 +556,7 @@ def main(argv: list[str] | None = None) -> int:
     result: dict[str, Any] = {
         "angle": bench_angle(plan, config, spec, args.angle_cases),
         "door": bench_door(plan, config, spec, [100, 250, 500, 750, 1000]),
-        "collision": bench_collision(plan, config, spec, [200, 400, 600, 800, 1000]),
+        "collision": bench_collision(plan, config, spec, collision_speeds(config)),
         "localization": bench_localization(plan, config, spec, 500.0),
     }
     result["elapsed_s"] = round(time.monotonic() - started, 1)

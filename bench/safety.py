@@ -17,7 +17,7 @@ speed where the case puts it (a delivery route drives at cruise speed and slows 
 and turns).
 
 Cases, each at every speed the robot may drive (``robot_speeds``: 200 mm/s, the cruise speed
-and the motors' maximum; ``--speeds`` for others): the seed's obstacle set head-on and
+and its rated maximum; ``--speeds`` for others): the seed's obstacle set head-on and
 off-centre; a person crossing out of the side hallway at 500, 1000 and 1600 mm/s (ISO
 13855's walking speed), from the left and, driving the other way, from the right, at 45, 90
 and 135 degrees to the direction of travel, entering the robot's path 1 m and 2 m ahead; a
@@ -1299,9 +1299,9 @@ def table(result: dict[str, Any]) -> str:
 
 
 def robot_speeds(config: RobotConfig) -> list[float]:
-    """The speeds the robot may drive, from 200 mm/s to the motors' maximum (the board
-    file's), with the cruise speed between (``--speeds`` adds others)."""
-    return sorted({200.0, config.motion.cruise_speed_mm_s, config.motor.max_speed_mm_s})
+    """The speeds the robot may drive, from 200 mm/s to its rated maximum (the motion
+    module's cap), with the cruise speed between (``--speeds`` adds others)."""
+    return sorted({200.0, config.motion.cruise_speed_mm_s, config.motion.max_speed_mm_s})
 
 
 def load_average() -> list[float]:

@@ -299,6 +299,13 @@ class MotionConfig(Section):
     """The motion module: lane keeping, the speed profile, the safety gate, going around."""
 
     cruise_speed_mm_s: float = Field(500.0, gt=0)
+    max_speed_mm_s: float = Field(
+        800.0,
+        gt=0,
+        description="the robot's rated speed, whatever an instruction asks: from 1 m/s it "
+        "needs 1.2 m to stop, beyond where it reliably sees a chair's pole or someone "
+        "stepping in 1 m ahead (docs/safety.md)",
+    )
     approach_speed_mm_s: float = Field(
         150.0, gt=0, description="speed over the last approach_mm before a target door"
     )

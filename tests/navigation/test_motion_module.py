@@ -101,6 +101,24 @@ async def test_collision_stop_stops_at_once(rig: Rig) -> None:
     assert rig.speed() == 0
 
 
+async def test_never_faster_than_the_rated_speed(rig: Rig) -> None:
+    """An instruction asking for the motors' maximum gets the robot's rated speed."""
+    rig.board.publish(
+        MOVE_INSTRUCTION,
+        MoveInstruction(
+            id=3,
+            action="follow_lane",
+            floor=2,
+            target_s_mm=40000,
+            lane_mm=-295,
+            speed_mm_s=CONFIG.motor.max_speed_mm_s,
+        ),
+    )
+    await rig.run_for(6.0)
+    assert CONFIG.motion.max_speed_mm_s < CONFIG.motor.max_speed_mm_s
+    assert rig.speed() == pytest.approx(CONFIG.motion.max_speed_mm_s)
+
+
 async def test_slow_verdict_caps_the_speed(rig: Rig) -> None:
     slow = CollisionStatus(state=SafetyState.SLOW, scan_seq=2, speed_limit_mm_s=80.0)
     await rig.run_for(3.0, collision=slow)

@@ -231,7 +231,8 @@ class MotionModule(Module):
                 ),
             )
             return
-        command = self.controller.step(ins, state.msg.pose, now, dt, gate.speed_limit_mm_s)
+        limit = min(gate.speed_limit_mm_s, self.cfg.max_speed_mm_s)
+        command = self.controller.step(ins, state.msg.pose, now, dt, limit)
         reason = command.status.state.value
         if gate.speed_limit_mm_s < self.cfg.cruise_speed_mm_s:
             reason = f"{reason}; {gate.reason}"
