@@ -198,6 +198,18 @@ class TrackingConfig(Section):
     horizon_s: float = Field(
         0.8, gt=0, description="prediction beyond the time to stop: how far ahead to look"
     )
+    lost_mover_s: float = Field(
+        2.0,
+        ge=0,
+        description="a mover that left every cone near the path is remembered this long: "
+        "someone who just crossed may turn back out of a blind spot (0: forget at once)",
+    )
+    lost_reach_mm: float = Field(
+        1000.0, ge=0, description="lost this close beside or ahead of the body: go carefully"
+    )
+    lost_speed_mm_s: float = Field(
+        150.0, gt=0, description="the speed past where someone went out of view"
+    )
 
 
 class AngleConfig(Section):

@@ -128,3 +128,24 @@ def test_a_side_hold_allows_creeping_straight_ahead_until_the_gap_shrinks() -> N
     assert monitor.update(side(42, 0.04), 50, 3).may_creep_ahead
     closing = monitor.update(side(20, 0.06), 50, 4)
     assert closing.state is SafetyState.STOP and not closing.may_creep_ahead
+
+
+def test_someone_who_went_out_of_view_beside_the_path_is_passed_slowly() -> None:
+    """A person crossing 800 mm ahead walks out of the cones to the left: they may turn back
+    out of the blind spot, so the robot goes at ``lost_speed_mm_s`` for ``lost_mover_s``."""
+    tracking = CONFIG.tracking
+    monitor = CollisionMonitor(TOED_OUT, CONFIG.collision, max_speed_mm_s=1000, tracking=tracking)
+    t, k = 0.0, 0
+    verdicts = []
+    while t < 3.0 + tracking.lost_mover_s:
+        k += 1
+        t = k * DT
+        y = -600.0 + 700.0 * t  # out of every cone from about 1.3 m to the left
+        points = [(305.0 + 800.0, y)] if y < 1500.0 else []
+        verdicts.append((t, y, monitor.update(scan_of(points, t), 0.0, k)))
+    lost = [t for t, _y, v in verdicts if "out of view" in v.reason]
+    assert lost, "the walker is remembered once no cone sees them"
+    careful = [v for t, _y, v in verdicts if lost[0] <= t < lost[0] + tracking.lost_mover_s - DT]
+    assert all(v.state is SafetyState.SLOW for v in careful)
+    assert all(v.speed_limit_mm_s == tracking.lost_speed_mm_s for v in careful)
+    assert verdicts[-1][2].state is SafetyState.GO

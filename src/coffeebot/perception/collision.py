@@ -426,6 +426,17 @@ class CollisionMonitor:
             SafetyState.SLOW, front, None, f"{what}, slowing", limit, found.ahead_mm, True
         )
 
+    def _lost_mover(self, now: float) -> _Finding | None:
+        """Someone who walked out of every cone near the path may step back into it from a
+        blind spot at any moment: past there, the robot goes slowly enough to stop at once."""
+        tracking = self.tracker.cfg
+        lost = self.tracker.lost_near(self.front_mm, self.half_width_mm, tracking.lost_reach_mm)
+        if lost is None:
+            return None
+        front = next(s for s in self.sensors.values() if s.face == "front")
+        what = f"someone went out of view beside the path {now - lost.t_s:.1f} s ago, slowing"
+        return _Finding(SafetyState.SLOW, front, None, what, tracking.lost_speed_mm_s, None, True)
+
     def update(
         self,
         scan: RangeScan,
@@ -462,6 +473,9 @@ class CollisionMonitor:
         intrusion = self._intrusion(speed)
         if intrusion is not None:
             findings.append(intrusion)
+        lost = self._lost_mover(now)
+        if lost is not None:
+            findings.append(lost)
         worst = max(
             findings,
             key=lambda f: (

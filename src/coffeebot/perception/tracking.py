@@ -11,7 +11,10 @@ across it (the return may come from anywhere in the cone), which the measurement
 A track confirmed by ``confirm_hits`` points is a *mover* once its speed exceeds
 ``mover_speed_mm_s``; :meth:`ReturnTracker.intrusion` predicts, for the robot driving on at
 its speed, whether and when a mover enters the corridor ahead of the body. A static return
-(a wall, a box) yields a track with no velocity and is left to the corridor rules.
+(a wall, a box) yields a track with no velocity and is left to the corridor rules. A mover
+that drops out of every cone is not gone: :meth:`ReturnTracker.lost_near` remembers where it
+was last, for ``lost_mover_s``, so the robot can go carefully past where someone may step
+back out of its blind spots.
 """
 
 from __future__ import annotations
@@ -64,6 +67,15 @@ class Intrusion:
     speed_mm_s: float
 
 
+@dataclass(frozen=True)
+class LostMover:
+    """A mover no cone sees any more: where it was last seen (odometry frame), and when."""
+
+    x_mm: float
+    y_mm: float
+    t_s: float
+
+
 class Odometry2D:
     """The robot's pose in a local frame, dead-reckoned from speed and yaw rate."""
 
@@ -100,6 +112,7 @@ class ReturnTracker:
         self.sensors = {s.id: s for s in sensors}
         self.odometry = Odometry2D()
         self.tracks: list[Track] = []
+        self.lost: list[LostMover] = []
         self._next_id = 1
         self._last_t: float | None = None
 
@@ -157,6 +170,11 @@ class ReturnTracker:
         for k, sighting in enumerate(sightings):
             if k not in used:
                 self._start(sighting, now)
+        movers = {t.id for t in self.movers()}
+        for track in self.tracks:
+            if now - track.last_s > self.cfg.forget_s and track.id in movers:
+                self.lost.append(LostMover(float(track.state[0]), float(track.state[1]), now))
+        self.lost = [m for m in self.lost if now - m.t_s <= self.cfg.lost_mover_s]
         self.tracks = [t for t in self.tracks if now - t.last_s <= self.cfg.forget_s]
         return self.tracks
 
@@ -212,6 +230,18 @@ class ReturnTracker:
             for t in self.tracks
             if t.hits >= self.cfg.confirm_hits and t.speed_mm_s >= self.cfg.mover_speed_mm_s
         ]
+
+    def lost_near(
+        self, front_mm: float, half_width_mm: float, reach_mm: float
+    ) -> LostMover | None:
+        """The latest lost mover last seen beside or in the corridor ahead: within
+        ``reach_mm`` of it sideways, from the rear of the body to ``reach_mm`` past its front
+        (robot frame); None if none."""
+        for lost in reversed(self.lost):
+            x, y = self.odometry.to_local(lost.x_mm, lost.y_mm)
+            if -front_mm <= x <= front_mm + reach_mm and abs(y) <= half_width_mm + reach_mm:
+                return lost
+        return None
 
     def intrusion(
         self,
