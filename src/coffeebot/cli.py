@@ -12,6 +12,7 @@ import asyncio
 import contextlib
 import json
 import logging
+import math
 import os
 import sys
 import time
@@ -51,9 +52,15 @@ def _add_common(parser: argparse.ArgumentParser) -> None:
 
 def _positive(text: str) -> float:
     value = float(text)
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"must be positive, got {text}")
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"must be a positive number, got {text}")
     return value
+
+
+def _refused(what: str, exc: Exception) -> None:
+    """One line per problem on stderr, each naming the file and the field (or the part)."""
+    for line in str(exc).splitlines() or [type(exc).__name__]:
+        print(f"coffeebot: {what}{line}", file=sys.stderr)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -225,7 +232,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         config = load_robot_config(args.board)
     except ConfigError as exc:
-        print(f"coffeebot: configuration error\n{exc}", file=sys.stderr)
+        _refused("configuration error: ", exc)
         return 2
     setup_logging(args.log_level or config.logging.level)
     if args.command == "check-hardware":

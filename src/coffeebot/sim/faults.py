@@ -31,11 +31,11 @@ class FaultRecord:
 
 
 class _Fault(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
     kind: str
     from_s: float = Field(ge=0, description="simulated time the fault starts")
-    to_s: float | None = Field(None, description="when it ends; leave out for the whole run")
+    to_s: float | None = Field(None, ge=0, description="when it ends; leave out for the whole run")
 
     @model_validator(mode="after")
     def _ordered(self) -> _Fault:
