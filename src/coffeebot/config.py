@@ -8,6 +8,7 @@ so an empty section means "as the paper built it". A broken file fails fast with
 from __future__ import annotations
 
 import tomllib
+from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -593,14 +594,22 @@ def describe_validation_error(path: Path, error: ValidationError) -> str:
     return "\n".join(lines)
 
 
-def read_toml(path: Path) -> dict[str, Any]:
+def read_toml(path: Path, fail: Callable[[str], ConfigError] | None = None) -> dict[str, Any]:
+    """The document in a TOML file; a file that cannot be read or parsed raises
+    ``fail(problem)`` (by default a :class:`ConfigError` "<path>: <problem>"), one line."""
     try:
-        with path.open("rb") as fh:
-            return tomllib.load(fh)
+        return tomllib.loads(path.read_bytes().decode("utf-8"))
     except FileNotFoundError:
-        raise ConfigError(f"{path}: file not found") from None
+        problem = "file not found"
+    except IsADirectoryError:
+        problem = "is a directory, not a file"
+    except OSError as exc:
+        problem = f"cannot be read: {exc.strerror or exc}"
+    except UnicodeDecodeError as exc:
+        problem = f"not UTF-8 text (byte {exc.start} is {exc.object[exc.start]:#04x})"
     except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path}: not valid TOML: {exc}") from None
+        problem = f"not valid TOML: {exc}"
+    raise ConfigError(f"{path}: {problem}") if fail is None else fail(problem)
 
 
 def load_robot_config(path: str | Path) -> RobotConfig:

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import itertools
 import math
-import tomllib
 from collections.abc import Iterator, Sequence
 from functools import cached_property
 from pathlib import Path
@@ -24,6 +23,7 @@ from typing import Annotated, Any, Literal, NamedTuple
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from coffeebot.config import read_toml
 from coffeebot.errors import ConfigError
 
 Side = Literal["left", "right"]
@@ -359,12 +359,7 @@ class FloorPlan(_Model):
 def load_floorplan(path: str | Path) -> FloorPlan:
     """Read and validate a floor plan TOML file; every problem raises :class:`FloorPlanError`."""
     path = Path(path)
-    try:
-        raw = tomllib.loads(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise FloorPlanError(path, "file", exc.strerror or str(exc)) from exc
-    except tomllib.TOMLDecodeError as exc:
-        raise FloorPlanError(path, "TOML syntax", str(exc)) from exc
+    raw = read_toml(path, lambda problem: FloorPlanError(path, "file", problem))
     return parse_floorplan(raw, path)
 
 
