@@ -116,6 +116,13 @@ class MotorConfig(SerialPortConfig):
     max_speed_mm_s: float = Field(1000.0, gt=0, le=SPEED_MM_S)
     max_accel_mm_s2: float = Field(500.0, gt=0, le=ACCEL_MM_S2)
     watchdog_ms: int = Field(200, gt=0, le=1000, description="controller stops without a command")
+    telemetry_timeout_s: float = Field(
+        0.5,
+        gt=0,
+        le=5,
+        description="no telemetry for this long: the controller is silent, the driver reports "
+        "it failed and motion holds the robot (telemetry comes at 50 Hz)",
+    )
 
 
 class GeometryConfig(Section):

@@ -172,6 +172,36 @@ async def test_stale_command_becomes_stop(
     assert causes(caplog, "safety_clear") == ["motor commands resumed"]
 
 
+async def test_silent_controller_is_reported_failed_and_its_recovery_logged(
+    sim_motor: SimMotorController,
+    context_for: ContextFor,
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    caplog.set_level(logging.INFO)
+    driver = MotorDriver(
+        MotorConfig(port=sim_motor.port, telemetry_timeout_s=0.1),
+        read_timeout_s=0.02,
+        backoff_s=FAST_BACKOFF,
+    )
+    async with running(driver, context_for) as board:
+        await board.next(ODOMETRY, timeout=5.0)
+        # The timeout only bounds a failing test.
+        async with asyncio.timeout(5.0):
+            with board.subscribe(HEALTH) as health:
+                sim_motor.silent = True  # hung firmware: the port stays open, nothing comes
+                failed = (await health.get()).msg
+                assert failed.status is HealthStatus.FAILED
+                assert failed.detail.startswith("no telemetry from the motor controller for 0.1 s")
+                sim_motor.silent = False
+                assert (await health.get()).msg.status is HealthStatus.RUNNING
+    assert driver.counters.silences == 1
+    [silent] = events(caplog, "fault")
+    assert silent.subject == sim_motor.port
+    assert silent.cause == "no telemetry from the motor controller for 0.1 s"
+    [back] = causes(caplog, "reconnect")
+    assert back.startswith("telemetry resumed after ") and back.endswith(" s of silence")
+
+
 async def test_motor_survives_garbage_reset_and_unplug(
     sim_motor: SimMotorController,
     motor_driver: MotorDriver,

@@ -5,9 +5,13 @@ watchdog; a command older than ``command_timeout_s`` is replaced by a stop, so a
 motion module stops the robot here as well as at the controller. On shutdown it sends a stop
 before the daemon cancels anything.
 
-Logged once each, with the cause: a lost port (``disconnect``) or a controller reset while
-running (``fault``) and the telemetry coming back (``reconnect``); a moving command going
-stale (``safety_stop``) and commands resuming (``safety_clear``).
+A controller that sends no telemetry for ``[motor] telemetry_timeout_s`` (hung firmware, a
+broken wire) is reported ``failed`` on the health topic; motion holds the robot on the same
+silence (it reads the telemetry's age), so navigation tells the order the true reason.
+
+Logged once each, with the cause: a lost port (``disconnect``), a controller reset while
+running or silent (``fault``) and the telemetry coming back (``reconnect``); a moving command
+going stale (``safety_stop``) and commands resuming (``safety_clear``).
 """
 
 from __future__ import annotations
@@ -32,7 +36,7 @@ from coffeebot.messages import (
 from coffeebot.modules.base import ModuleContext
 from coffeebot.modules.serial_device import LinkCounters, Opener, SerialDeviceModule
 
-RESET = "reset"
+RESET, SILENT = "reset", "silent"
 FRESH, STALE = "fresh", "stale"
 
 
@@ -43,6 +47,7 @@ class MotorCounters(LinkCounters):
     controller_boots: int = 0
     commands: int = 0
     stale_stops: int = 0
+    silences: int = 0
 
 
 class MotorDriver(SerialDeviceModule[MotorCounters]):
@@ -74,6 +79,7 @@ class MotorDriver(SerialDeviceModule[MotorCounters]):
         )
         self.keepalive_s = keepalive_s
         self.command_timeout_s = command_timeout_s
+        self.telemetry_timeout_s = motor.telemetry_timeout_s
         self._controller: MotorController | None = None
         self._writer: DeviceWorker | None = None
         self._commands: Transitions | None = None
@@ -115,8 +121,18 @@ class MotorDriver(SerialDeviceModule[MotorCounters]):
         self, ctx: ModuleContext, reader: DeviceWorker, ctrl: MotorController
     ) -> None:
         healthy = False
+        heard = ctx.clock.now()  # the port just opened: the first telemetry is due
+        silent_since: float | None = None
+        timeout_s = self.telemetry_timeout_s
         while True:
             line = await reader.call(ctrl.readline)
+            now = ctx.clock.now()
+            if silent_since is None and now - heard > timeout_s:
+                silent_since, healthy = heard, False
+                self.counters.silences += 1
+                cause = f"no telemetry from the motor controller for {timeout_s:g} s"
+                self.link(SILENT, Event.FAULT, cause)
+                self.health(ctx, HealthStatus.FAILED, f"{cause}; motion holds the robot")
             if line is None:
                 continue
             try:
@@ -126,10 +142,15 @@ class MotorDriver(SerialDeviceModule[MotorCounters]):
                 continue
             if isinstance(event, Odometry):
                 self.counters.telemetry += 1
+                heard = now
                 ctx.board.publish(ODOMETRY, event)
                 if not healthy:
                     healthy = True
-                    self.connected(ctx, "telemetry resumed", f"telemetry on {self.port}")
+                    cause = "telemetry resumed"
+                    if silent_since is not None:
+                        cause += f" after {now - silent_since:.1f} s of silence"
+                    silent_since = None
+                    self.connected(ctx, cause, f"telemetry on {self.port}")
             elif isinstance(event, Boot):
                 # Counters restarted at zero: consumers must not difference across this.
                 self.counters.controller_boots += 1
