@@ -3,7 +3,7 @@
 The current command is re-sent every ``keepalive_s`` to feed the controller's 200 ms
 watchdog; a command older than ``command_timeout_s`` is replaced by a stop, so a silent
 motion module stops the robot here as well as at the controller. On shutdown it sends a stop
-before the daemon cancels anything.
+before the daemon cancels anything, and logs whether it got out.
 
 A controller that sends no telemetry for ``[motor] telemetry_timeout_s`` (hung firmware, a
 broken wire) is reported ``failed`` on the health topic; motion holds the robot on the same
@@ -18,13 +18,14 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
 from dataclasses import dataclass
 
 from coffeebot.config import MotorConfig
 from coffeebot.hardware.motor import Boot, MotorController, parse
 from coffeebot.hardware.serial_port import SerialPort, open_port
 from coffeebot.hardware.worker import DeviceWorker
-from coffeebot.logs import Event, Transitions
+from coffeebot.logs import Event, Transitions, log_event
 from coffeebot.messages import (
     HEALTH,
     MOTOR_COMMAND,
@@ -80,6 +81,9 @@ class MotorDriver(SerialDeviceModule[MotorCounters]):
         self.keepalive_s = keepalive_s
         self.command_timeout_s = command_timeout_s
         self.telemetry_timeout_s = motor.telemetry_timeout_s
+        self.watchdog_ms = motor.watchdog_ms
+        self._log = logging.getLogger(f"coffeebot.module.{self.name}")
+        """The daemon's logger for this module (``shutdown`` runs without a context)."""
         self._controller: MotorController | None = None
         self._writer: DeviceWorker | None = None
         self._commands: Transitions | None = None
@@ -196,14 +200,22 @@ class MotorDriver(SerialDeviceModule[MotorCounters]):
                 await writer.call(ctrl.stop)
 
     async def shutdown(self) -> None:
-        """Send a stop now and only stops from here on; the controller's watchdog is the
-        fallback if this fails."""
+        """Send a stop now and only stops from here on, and say whether it got out; the
+        controller's watchdog is the fallback if it did not."""
         self._stopping = True
         ctrl, writer = self._controller, self._writer
+        fallback = f"the controller's {self.watchdog_ms} ms watchdog stops the motors"
         if ctrl is None or writer is None:
+            self._log.warning("shutdown: no motor controller connected to stop; %s", fallback)
             return
-        with contextlib.suppress(OSError):
+        try:
             await writer.call(ctrl.stop)
+        except OSError as exc:
+            log_event(
+                self._log, Event.FAULT, f"shutdown: the motor stop failed ({exc}); {fallback}"
+            )
+            return
+        log_event(self._log, Event.SAFETY_STOP, "shutdown: motors stopped", port=self.port)
 
 
 def _moving(command: MotorCommand) -> bool:
