@@ -5,7 +5,6 @@ world behind a simulated I2C bus and two pty devices) under the very same module
 from __future__ import annotations
 
 import contextlib
-import tempfile
 from collections.abc import AsyncIterator, Callable, Sequence
 from pathlib import Path
 
@@ -15,6 +14,7 @@ from coffeebot.floorplan import FloorPlan
 from coffeebot.messages import PoseEstimate
 from coffeebot.modules.base import Module
 from coffeebot.runtime.assemble import Runtime, assemble
+from coffeebot.sim.rundir import run_directory
 from coffeebot.sim.simulation import SimElevatorLink, SimSetup, Simulation, WorldModule
 from coffeebot.sim.world import RobotSpec, World
 from coffeebot.sim.world.elevator import SimElevator
@@ -43,7 +43,7 @@ async def build_sim(
 ) -> AsyncIterator[tuple[Runtime, Simulation]]:
     """The daemon on the simulated robot, and its simulation; the devices run while the
     context is open and the order store lives in a temporary directory (each run starts with
-    an empty queue)."""
+    an empty queue; one a killed run left behind goes at the next start)."""
     clock = ScaledClock(setup.speed)
     world = World(
         plan,
@@ -64,7 +64,7 @@ async def build_sim(
         sigma_y_mm=50.0,
         sigma_heading_deg=5.0,
     )
-    with tempfile.TemporaryDirectory(prefix="coffeebot-sim-") as tmp:
+    with run_directory() as tmp:
         sim.start()
         try:
             yield (
