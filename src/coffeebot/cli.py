@@ -24,11 +24,11 @@ from coffeebot.board.recording import Player, RecordingError, recording_info
 from coffeebot.clock import ScaledClock
 from coffeebot.config import RobotConfig, load_robot_config
 from coffeebot.daemon import Daemon
-from coffeebot.errors import ConfigError
+from coffeebot.errors import CoffeebotError, ConfigError
 from coffeebot.floorplan import FloorPlan, load_floorplan
 from coffeebot.floorplan_svg import add_render_arguments, render_command
 from coffeebot.hardware.i2c import kernel_bus_hz, open_i2c_bus
-from coffeebot.hardware.selfcheck import CheckResult, SelfCheckFailed, run_checks
+from coffeebot.hardware.selfcheck import CheckResult, run_checks
 from coffeebot.install import install_service
 from coffeebot.logs import setup_logging
 from coffeebot.messages import ALL_TOPICS
@@ -250,9 +250,12 @@ def main(argv: list[str] | None = None) -> int:
             return _sim_command(config, args)
         robot = build_robot(config, load_floorplan(args.floorplan))
         asyncio.run(serve(robot, args.record))
-    except (ConfigError, SelfCheckFailed, OSError) as exc:
-        print(f"coffeebot: {exc}", file=sys.stderr)
-        return 2 if isinstance(exc, ConfigError) else 1
+    except ConfigError as exc:
+        _refused("configuration error: ", exc)
+        return 2
+    except (CoffeebotError, OSError) as exc:
+        _refused("", exc)
+        return 1
     return 0
 
 

@@ -515,6 +515,12 @@ class NavigationConfig(Section):
 class WebConfig(Section):
     host: str = Field("127.0.0.1", min_length=1)
     port: int = Field(8080, ge=0, le=65535)
+    allowed_hosts: list[str] = Field(
+        [],
+        description="names the web answers to (the Host header) besides IP addresses, "
+        "localhost and this machine's own name: anything else is refused, so a web page "
+        "elsewhere cannot reach the API by pointing its own name at the robot (DNS rebinding)",
+    )
     operator_token_env: str = Field("COFFEEBOT_OPERATOR_TOKEN", min_length=1)
     drinks: list[Annotated[str, Field(min_length=1, max_length=DRINK_NAME_CHARS)]] = Field(
         ["espresso", "americano", "latte", "cappuccino", "tea"], min_length=1
@@ -539,7 +545,26 @@ class WebConfig(Section):
 
 
 class StoreConfig(Section):
+    """The order database and what happens when it cannot be written (locked, read only,
+    full): every change is kept and retried, and the operator is told."""
+
     path: Path = Path("var/orders.sqlite3")
+    busy_timeout_s: float = Field(
+        1.0,
+        gt=0,
+        le=60,
+        description="a write waits this long for another process's lock before it is retried "
+        "later; reads queue behind it, so keep it short",
+    )
+    retry_max_s: float = Field(
+        2.0, gt=0, le=60, description="longest wait between two attempts at a failed write"
+    )
+    failed_after_s: float = Field(
+        30.0,
+        gt=0,
+        le=WAIT_S,
+        description="unwritable this long: the orders' health says failed (degraded before)",
+    )
 
 
 class LoggingConfig(Section):

@@ -180,12 +180,13 @@ class OrderStatus(StrEnum):
 
 
 class OrderDispatch(Message):
-    """The orders module hands the head of the queue to navigation, one order at a time."""
+    """The orders module hands the head of the queue to navigation, one order at a time.
+
+    No customer's name: everything on the board can be seen on the inspector."""
 
     order_id: str
     room: str
     drink: str
-    name: str
 
 
 class DeliveryProblem(StrEnum):

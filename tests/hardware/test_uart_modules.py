@@ -189,8 +189,7 @@ async def test_shutdown_without_a_controller_says_what_stops_the_motors(
         await until(lambda: motor_driver.counters.failures >= 1)
     assert causes(caplog, "safety_stop") == []
     assert any(
-        r.getMessage()
-        == "shutdown: no motor controller connected to stop; "
+        r.getMessage() == "shutdown: no motor controller connected to stop; "
         "the controller's 200 ms watchdog stops the motors"
         for r in caplog.records
     )

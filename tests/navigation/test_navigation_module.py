@@ -121,7 +121,7 @@ async def test_delivery_to_the_other_floor_and_home(rig) -> None:
     clock, board, daemon, statuses = rig
     tasks = await run_stand(board, elevator=True)
     await daemon.start()
-    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o1", room="305", drink="tea", name="A"))
+    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o1", room="305", drink="tea"))
     await clock.advance(1.0)
     board.publish(OPERATOR_EVENT, OperatorEvent(kind="cup_loaded", order_id="o1"))
     await clock.advance(5.0)
@@ -143,7 +143,7 @@ async def test_delivery_to_the_other_floor_and_home(rig) -> None:
 async def test_no_cup_no_delivery(rig) -> None:
     clock, board, daemon, statuses = rig
     await daemon.start()
-    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o2", room="205", drink="tea", name="B"))
+    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o2", room="205", drink="tea"))
     await clock.advance(CONFIG.navigation.loading_timeout_s + 1)
     updates = [e.msg for e in iter(statuses.get_nowait, None)]
     assert [u.status for u in updates] == [OrderStatus.PREPARING, OrderStatus.FAILED]
@@ -155,7 +155,7 @@ async def test_nobody_at_the_door_takes_the_cup_back(rig) -> None:
     clock, board, daemon, statuses = rig
     tasks = await run_stand(board, elevator=True)
     await daemon.start()
-    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o3", room="205", drink="tea", name="C"))
+    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o3", room="205", drink="tea"))
     await clock.advance(1.0)
     board.publish(OPERATOR_EVENT, OperatorEvent(kind="cup_loaded", order_id="o3"))
     await clock.advance(CONFIG.navigation.pickup_timeout_s + 5)
@@ -169,7 +169,7 @@ async def test_silent_elevator_retries_then_asks_an_operator(rig) -> None:
     clock, board, daemon, statuses = rig
     tasks = await run_stand(board, elevator=False)
     await daemon.start()
-    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o4", room="305", drink="tea", name="D"))
+    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o4", room="305", drink="tea"))
     await clock.advance(1.0)
     board.publish(OPERATOR_EVENT, OperatorEvent(kind="cup_loaded", order_id="o4"))
     elevator = CONFIG.navigation.elevator
@@ -189,7 +189,7 @@ async def test_cancel_on_the_way_reports_cancelled(rig) -> None:
     clock, board, daemon, statuses = rig
     tasks = await run_stand(board, elevator=False)
     await daemon.start()
-    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o5", room="305", drink="tea", name="E"))
+    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o5", room="305", drink="tea"))
     await clock.advance(1.0)
     board.publish(OPERATOR_EVENT, OperatorEvent(kind="cup_loaded", order_id="o5"))
     await clock.advance(5.0)
@@ -220,7 +220,7 @@ async def test_silent_motor_controller_is_the_orders_reason_at_once(rig) -> None
     clock, board, daemon, statuses = rig
     motion = asyncio.create_task(held_by_silent_motors(board))
     await daemon.start()
-    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o6", room="205", drink="tea", name="F"))
+    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o6", room="205", drink="tea"))
     await clock.advance(1.0)
     board.publish(OPERATOR_EVENT, OperatorEvent(kind="cup_loaded", order_id="o6"))
     await clock.advance(3.0)

@@ -16,6 +16,7 @@ from coffeebot.modules.base import Module
 from coffeebot.runtime.assemble import Runtime, assemble
 from coffeebot.sim.rundir import run_directory
 from coffeebot.sim.simulation import SimElevatorLink, SimSetup, Simulation, WorldModule
+from coffeebot.sim.store import SimStore
 from coffeebot.sim.world import RobotSpec, World
 from coffeebot.sim.world.elevator import SimElevator
 from coffeebot.web.livemap import MapPose
@@ -54,7 +55,6 @@ async def build_sim(
         seed=setup.seed,
         elevator=SimElevator(plan, car_floor=setup.floor),
     )
-    sim = Simulation(world, config, clock, setup.faults, speed=setup.speed)
     start = PoseEstimate(
         x_mm=setup.pose.x_mm,
         y_mm=setup.pose.y_mm,
@@ -65,6 +65,8 @@ async def build_sim(
         sigma_heading_deg=5.0,
     )
     with run_directory() as tmp:
+        store = SimStore(Path(tmp) / "orders.sqlite3", busy_timeout_s=config.store.busy_timeout_s)
+        sim = Simulation(world, config, clock, setup.faults, speed=setup.speed, store=store)
         sim.start()
         try:
             yield (
@@ -73,7 +75,7 @@ async def build_sim(
                     plan,
                     clock=clock,
                     open_i2c=lambda: sim.tof.bus,
-                    store_path=Path(tmp) / "orders.sqlite3",
+                    store=store,
                     start=start,
                     before=[WorldModule(sim)],
                     elevator=SimElevatorLink(sim),
@@ -85,3 +87,4 @@ async def build_sim(
             )
         finally:
             sim.close()
+            store.close()

@@ -31,6 +31,7 @@ from coffeebot.sim.dwm1001 import SimDwm1001
 from coffeebot.sim.faults import Fault, FaultRecord
 from coffeebot.sim.i2c import make_tof_hardware
 from coffeebot.sim.motor_controller import DriveSample, SimMotorController
+from coffeebot.sim.store import SimStore
 from coffeebot.sim.world import ObstacleSpec, Pose, ToFReading, World
 
 DEVICE_TICK_S = 0.005
@@ -93,8 +94,11 @@ class Simulation:
         clock: Clock,
         faults: Sequence[Fault] = (),
         speed: float = 1.0,
+        store: SimStore | None = None,
     ) -> None:
         self.world = world
+        self.store = store
+        """The order database the store faults act on (None: a run without one)."""
         self.clock = clock
         self.lock = threading.RLock()
         self.faults = [fault.model_copy() for fault in faults]  # each run starts afresh
