@@ -8,7 +8,7 @@ import contextlib
 from collections.abc import AsyncIterator, Callable, Sequence
 from pathlib import Path
 
-from coffeebot.clock import ScaledClock
+from coffeebot.clock import Clock, MonotonicClock, SteppedClock
 from coffeebot.config import RobotConfig
 from coffeebot.floorplan import FloorPlan
 from coffeebot.messages import PoseEstimate
@@ -45,7 +45,7 @@ async def build_sim(
     """The daemon on the simulated robot, and its simulation; the devices run while the
     context is open and the order store lives in a temporary directory (each run starts with
     an empty queue; one a killed run left behind goes at the next start)."""
-    clock = ScaledClock(setup.speed)
+    clock: Clock = MonotonicClock() if setup.wall_clock else SteppedClock(setup.speed)
     world = World(
         plan,
         RobotSpec.from_config(config),
