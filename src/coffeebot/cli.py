@@ -12,6 +12,7 @@ import asyncio
 import contextlib
 import json
 import logging
+import math
 import os
 import sys
 import time
@@ -23,11 +24,11 @@ from coffeebot.board.recording import Player, RecordingError, recording_info
 from coffeebot.clock import ScaledClock
 from coffeebot.config import RobotConfig, load_robot_config
 from coffeebot.daemon import Daemon
-from coffeebot.errors import ConfigError
+from coffeebot.errors import CoffeebotError, ConfigError
 from coffeebot.floorplan import FloorPlan, load_floorplan
 from coffeebot.floorplan_svg import add_render_arguments, render_command
 from coffeebot.hardware.i2c import kernel_bus_hz, open_i2c_bus
-from coffeebot.hardware.selfcheck import CheckResult, SelfCheckFailed, run_checks
+from coffeebot.hardware.selfcheck import CheckResult, run_checks
 from coffeebot.install import install_service
 from coffeebot.logs import setup_logging
 from coffeebot.messages import ALL_TOPICS
@@ -51,9 +52,15 @@ def _add_common(parser: argparse.ArgumentParser) -> None:
 
 def _positive(text: str) -> float:
     value = float(text)
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"must be positive, got {text}")
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"must be a positive number, got {text}")
     return value
+
+
+def _refused(what: str, exc: Exception) -> None:
+    """One line per problem on stderr, each naming the file and the field (or the part)."""
+    for line in str(exc).splitlines() or [type(exc).__name__]:
+        print(f"coffeebot: {what}{line}", file=sys.stderr)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -225,7 +232,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         config = load_robot_config(args.board)
     except ConfigError as exc:
-        print(f"coffeebot: configuration error\n{exc}", file=sys.stderr)
+        _refused("configuration error: ", exc)
         return 2
     setup_logging(args.log_level or config.logging.level)
     if args.command == "check-hardware":
@@ -243,9 +250,12 @@ def main(argv: list[str] | None = None) -> int:
             return _sim_command(config, args)
         robot = build_robot(config, load_floorplan(args.floorplan))
         asyncio.run(serve(robot, args.record))
-    except (ConfigError, SelfCheckFailed, OSError) as exc:
-        print(f"coffeebot: {exc}", file=sys.stderr)
-        return 2 if isinstance(exc, ConfigError) else 1
+    except ConfigError as exc:
+        _refused("configuration error: ", exc)
+        return 2
+    except (CoffeebotError, OSError) as exc:
+        _refused("", exc)
+        return 1
     return 0
 
 

@@ -8,26 +8,48 @@ so an empty section means "as the paper built it". A broken file fails fast with
 from __future__ import annotations
 
 import tomllib
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from coffeebot.errors import ConfigError
 from coffeebot.hardware.vl53l1x import field_of_view_deg
 
+# Sane ranges for the physical quantities: generous for any indoor robot, but a typo (an extra
+# zero, a sign) or an impossible value fails at start instead of in the hallway.
+MOUNT_MM = 1000.0
+"""Anything mounted on the body sits this close to its centre."""
+BODY_MM = 2000.0
+DISTANCE_MM = 5000.0
+"""Radii, margins, clearances, door widths: what the sensors can see and a bit more."""
+RANGE_MM = 10_000
+LENGTH_MM = 50_000.0
+"""Along a hallway: look-aheads, approach distances, windows."""
+SPEED_MM_S = 3000.0
+ACCEL_MM_S2 = 10_000.0
+"""About 1 g: no wheeled robot brakes harder."""
+WAIT_S = 86_400.0
+"""Timeouts: nothing waits longer than a day."""
+DRINK_NAME_CHARS = 40
+
 
 class Section(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    """A table of the board file: unknown keys, ``nan`` and ``inf`` are refused (a NaN
+    threshold makes every comparison false, so a check built on it never fires)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 class I2CConfig(Section):
-    bus: int = Field(1, ge=0, description="Linux I2C bus number (/dev/i2c-N)")
+    bus: int = Field(1, ge=0, le=255, description="Linux I2C bus number (/dev/i2c-N)")
     mux_address: int = Field(0x70, ge=0x70, le=0x77, description="TCA9548A address")
     sensor_address: int = Field(0x29, ge=0x08, le=0x77, description="VL53L1X address")
     frequency_hz: int = Field(
         400_000,
         gt=0,
+        le=3_400_000,
         description="the bus clock the sensors need: at 100 kHz eight sensors' transfers take "
         "longer than a scan (bench/tof.py); the self-check warns when the kernel runs it slower",
     )
@@ -39,13 +61,16 @@ class TofSensorConfig(Section):
     id: int = Field(ge=0, le=7)
     channel: int = Field(ge=0, le=7)
     face: Literal["front", "left", "right", "rear"]
-    x_mm: float
-    y_mm: float
+    x_mm: float = Field(ge=-MOUNT_MM, le=MOUNT_MM)
+    y_mm: float = Field(ge=-MOUNT_MM, le=MOUNT_MM)
     yaw_deg: float = Field(ge=-180, le=180)
-    height_mm: float = Field(250.0, gt=0)
+    height_mm: float = Field(250.0, gt=0, le=2000)
     roi_spads: int = Field(
-        16, ge=4, le=16, description="square region of interest: 16 = the full 27 degree cone, "
-        "4 = the narrowest, 15 degrees (and a tenth of the light)"
+        16,
+        ge=4,
+        le=16,
+        description="square region of interest: 16 = the full 27 degree cone, "
+        "4 = the narrowest, 15 degrees (and a tenth of the light)",
     )
 
     @property
@@ -60,7 +85,7 @@ class TofConfig(Section):
     scan_rate_hz: float | None = Field(
         None, gt=0, le=100, description="None: as fast as the timing budget allows"
     )
-    max_range_mm: int = Field(4000, gt=0)
+    max_range_mm: int = Field(4000, gt=0, le=RANGE_MM)
     min_signal_mcps: float = Field(
         1.0, ge=0, lt=512, description="the chip's minimum signal rate for a valid ranging"
     )
@@ -75,7 +100,7 @@ class TofConfig(Section):
         "nearest return within this many degrees of the optical axis; 0 = along the axis, "
         "which is what the VL53L1X's signal-weighted mean gives on a flat wall",
     )
-    sensors: list[TofSensorConfig]
+    sensors: list[TofSensorConfig] = Field(min_length=1)
 
     @property
     def cone_half_deg(self) -> float:
@@ -84,6 +109,8 @@ class TofConfig(Section):
 
     @model_validator(mode="after")
     def _unique(self) -> TofConfig:
+        if not any(s.face == "front" for s in self.sensors):
+            raise ValueError("no sensor faces front: the robot would drive blind")
         for attr in ("id", "channel"):
             values = [getattr(s, attr) for s in self.sensors]
             dupes = sorted({v for v in values if values.count(v) > 1})
@@ -93,59 +120,92 @@ class TofConfig(Section):
 
 
 class SerialPortConfig(Section):
-    port: str = Field(description="device path or pyserial URL")
-    baudrate: int = Field(115_200, gt=0)
+    port: str = Field(min_length=1, description="device path or pyserial URL")
+    baudrate: int = Field(115_200, gt=0, le=4_000_000)
 
 
 class MotorConfig(SerialPortConfig):
-    wheel_diameter_mm: float = Field(100.0, gt=0)
-    ticks_per_rev: int = Field(360, gt=0)
-    wheel_base_mm: float = Field(450.0, gt=0, description="distance between wheel contacts")
-    axle_x_mm: float = Field(
-        150.0, description="driven axle ahead of the body centre (the seed's front wheels)"
+    wheel_diameter_mm: float = Field(100.0, gt=0, le=1000)
+    ticks_per_rev: int = Field(360, gt=0, le=1_000_000)
+    wheel_base_mm: float = Field(
+        450.0, gt=0, le=BODY_MM, description="distance between wheel contacts"
     )
-    max_speed_mm_s: float = Field(1000.0, gt=0)
-    max_accel_mm_s2: float = Field(500.0, gt=0)
-    watchdog_ms: int = Field(200, gt=0, description="controller stops without a command")
+    axle_x_mm: float = Field(
+        150.0,
+        ge=-MOUNT_MM,
+        le=MOUNT_MM,
+        description="driven axle ahead of the body centre (the seed's front wheels)",
+    )
+    max_speed_mm_s: float = Field(1000.0, gt=0, le=SPEED_MM_S)
+    max_accel_mm_s2: float = Field(500.0, gt=0, le=ACCEL_MM_S2)
+    watchdog_ms: int = Field(200, gt=0, le=1000, description="controller stops without a command")
+    telemetry_timeout_s: float = Field(
+        0.5,
+        gt=0,
+        le=5,
+        description="no telemetry for this long: the controller is silent, the driver reports "
+        "it failed and motion holds the robot (telemetry comes at 50 Hz)",
+    )
 
 
 class GeometryConfig(Section):
-    width_mm: float = Field(510.0, gt=0)
-    length_mm: float = Field(610.0, gt=0)
+    width_mm: float = Field(510.0, gt=0, le=BODY_MM)
+    length_mm: float = Field(610.0, gt=0, le=BODY_MM)
 
 
 class CollisionConfig(Section):
     """The seed's "private sphere", plus a speed-dependent stop distance and a slowdown zone."""
 
-    front_radius_mm: float = Field(200.0, gt=0, description="seed 000 private sphere, front")
-    side_radius_mm: float = Field(50.0, gt=0, description="seed 000 private sphere, sides")
+    front_radius_mm: float = Field(
+        200.0, gt=0, le=DISTANCE_MM, description="seed 000 private sphere, front"
+    )
+    side_radius_mm: float = Field(
+        50.0, gt=0, le=DISTANCE_MM, description="seed 000 private sphere, sides"
+    )
     reaction_latency_s: float = Field(
-        0.1, ge=0, description="scan-to-brake latency: one scan period plus command transport"
+        0.1, ge=0, le=2, description="scan-to-brake latency: one scan period plus command transport"
     )
     braking_mm_s2: float = Field(
-        450.0, gt=0, description="deceleration it can rely on: below the motor ramp (500)"
+        450.0,
+        gt=0,
+        le=ACCEL_MM_S2,
+        description="deceleration it can rely on: below the motor ramp (500)",
     )
-    margin_mm: float = Field(50.0, ge=0, description="added to the kinematic stop distance")
+    margin_mm: float = Field(
+        50.0, ge=0, le=DISTANCE_MM, description="added to the kinematic stop distance"
+    )
     slowdown_extra_mm: float = Field(
-        400.0, ge=0, description="slowdown zone depth in front of the stop distance"
+        400.0, ge=0, le=DISTANCE_MM, description="slowdown zone depth in front of the stop distance"
     )
     min_slow_speed_mm_s: float = Field(
-        50.0, gt=0, description="slowest crawl the slowdown zone asks for before stopping"
+        50.0,
+        gt=0,
+        le=SPEED_MM_S,
+        description="slowest crawl the slowdown zone asks for before stopping",
     )
-    hysteresis_mm: float = Field(30.0, ge=0, description="extra clearance needed to relax")
+    hysteresis_mm: float = Field(
+        30.0, ge=0, le=DISTANCE_MM, description="extra clearance needed to relax"
+    )
     corridor_margin_mm: float = Field(
-        100.0, ge=0, description="a front return this far beside the body's width is in the way"
+        100.0,
+        ge=0,
+        le=DISTANCE_MM,
+        description="a front return this far beside the body's width is in the way",
     )
     creep_ahead_mm_s: float = Field(
-        100.0, gt=0, description="the straight creep out of a side hold"
+        100.0, gt=0, le=SPEED_MM_S, description="the straight creep out of a side hold"
     )
-    stale_cycles: int = Field(5, ge=1, description="scans without a valid reading -> stop")
+    stale_cycles: int = Field(5, ge=1, le=100, description="scans without a valid reading -> stop")
     unknown_speed_mm_s: float | None = Field(
-        None, gt=0, description="speed assumed without fresh odometry; None: motor max speed"
+        None,
+        gt=0,
+        le=SPEED_MM_S,
+        description="speed assumed without fresh odometry; None: motor max speed",
     )
     memory_s: float = Field(
         1.5,
         ge=0,
+        le=10,
         description="a front return inside the body's corridor keeps blocking this long after "
         "it drops out of view (0: no memory): a chair's pole leaves the cones as the robot "
         "nears it, its seat does not; returns the plan's walls explain are not remembered",
@@ -153,24 +213,33 @@ class CollisionConfig(Section):
     memory_max_turn_deg: float = Field(
         10.0,
         gt=0,
+        le=180,
         description="a remembered return is forgotten once the body has turned this much since: "
         "it is no longer ahead (turning on the spot in the elevator car, round a corner)",
     )
     narrow_margin_mm: float = Field(
         250.0,
         ge=0,
+        le=DISTANCE_MM,
         description="extra front clearance for a narrow return: a pole can carry a seat or "
         "table top above the cones (a swivel chair's seat reaches ~240 mm beyond its pole)",
     )
     narrow_max_sensors: int = Field(
-        2, ge=1, description="a return seen by at most this many adjacent front sensors is narrow"
+        2,
+        ge=1,
+        le=8,
+        description="a return seen by at most this many adjacent front sensors is narrow",
     )
     narrow_depth_mm: float = Field(
-        300.0, gt=0, description="the other front sensors read at least this much further"
+        300.0,
+        gt=0,
+        le=RANGE_MM,
+        description="the other front sensors read at least this much further",
     )
     narrow_max_range_mm: float = Field(
         1200.0,
         gt=0,
+        le=RANGE_MM,
         description="narrow returns further than this are not judged (glances off side walls)",
     )
 
@@ -178,91 +247,144 @@ class CollisionConfig(Section):
 class TrackingConfig(Section):
     """Returns followed over scans (perception/tracking.py): people walking into the way."""
 
-    max_range_mm: float = Field(2500.0, gt=0, description="readings further are not tracked")
-    range_sigma_mm: float = Field(30.0, gt=0, description="a reading's error along its axis")
+    max_range_mm: float = Field(
+        2500.0, gt=0, le=RANGE_MM, description="readings further are not tracked"
+    )
+    range_sigma_mm: float = Field(
+        30.0, gt=0, le=DISTANCE_MM, description="a reading's error along its axis"
+    )
     accel_sigma_mm_s2: float = Field(
-        1500.0, gt=0, description="how hard a tracked person may change pace"
+        1500.0, gt=0, le=ACCEL_MM_S2, description="how hard a tracked person may change pace"
     )
     initial_speed_sigma_mm_s: float = Field(
-        1600.0, gt=0, description="a new track may move as fast as a brisk walk (ISO 13855)"
+        1600.0,
+        gt=0,
+        le=SPEED_MM_S,
+        description="a new track may move as fast as a brisk walk (ISO 13855)",
     )
-    gate_sigmas: float = Field(3.0, gt=0, description="association gate, in standard deviations")
-    confirm_hits: int = Field(3, ge=2, description="points before a track's velocity counts")
-    forget_s: float = Field(0.4, gt=0, description="a track not seen this long is dropped")
+    gate_sigmas: float = Field(
+        3.0, gt=0, le=100, description="association gate, in standard deviations"
+    )
+    confirm_hits: int = Field(
+        3, ge=2, le=100, description="points before a track's velocity counts"
+    )
+    forget_s: float = Field(0.4, gt=0, le=60, description="a track not seen this long is dropped")
     mover_speed_mm_s: float = Field(
-        250.0, gt=0, description="slower over the ground is standing (noise, a sliding glance)"
+        250.0,
+        gt=0,
+        le=SPEED_MM_S,
+        description="slower over the ground is standing (noise, a sliding glance)",
     )
     corridor_margin_mm: float = Field(
-        100.0, ge=0, description="a mover this close to the body's corridor is in it"
+        100.0,
+        ge=0,
+        le=DISTANCE_MM,
+        description="a mover this close to the body's corridor is in it",
     )
     horizon_s: float = Field(
-        0.8, gt=0, description="prediction beyond the time to stop: how far ahead to look"
+        0.8, gt=0, le=10, description="prediction beyond the time to stop: how far ahead to look"
     )
     lost_mover_s: float = Field(
         2.0,
         ge=0,
+        le=60,
         description="a mover that left every cone near the path is remembered this long: "
         "someone who just crossed may turn back out of a blind spot (0: forget at once)",
     )
     lost_reach_mm: float = Field(
-        1000.0, ge=0, description="lost this close beside or ahead of the body: go carefully"
+        1000.0,
+        ge=0,
+        le=DISTANCE_MM,
+        description="lost this close beside or ahead of the body: go carefully",
     )
     lost_speed_mm_s: float = Field(
-        150.0, gt=0, description="the speed past where someone went out of view"
+        150.0, gt=0, le=SPEED_MM_S, description="the speed past where someone went out of view"
     )
 
 
 class AngleConfig(Section):
     """Seed 000 angle correction from a side's sensor pair, with the door-straddle checks."""
 
-    max_side_distance_mm: float = Field(850.0, gt=0, description="both side sensors below")
+    max_side_distance_mm: float = Field(
+        850.0, gt=0, le=RANGE_MM, description="both side sensors below"
+    )
     max_sigma_mm: float = Field(
-        20.0, gt=0, description="readings the sensor reports a larger sigma for are not used"
+        20.0,
+        gt=0,
+        le=DISTANCE_MM,
+        description="readings the sensor reports a larger sigma for are not used",
     )
-    min_angle_deg: float = Field(5.0, ge=0, description="smaller angles are no correction")
+    min_angle_deg: float = Field(5.0, ge=0, le=45, description="smaller angles are no correction")
     scans_per_estimate: int = Field(
-        8, ge=1, description="accepted scans averaged (heading changes compensated) per angle"
+        8,
+        ge=1,
+        le=100,
+        description="accepted scans averaged (heading changes compensated) per angle",
     )
-    max_window_s: float = Field(3.0, gt=0, description="older accepted scans are dropped")
+    max_window_s: float = Field(3.0, gt=0, le=60, description="older accepted scans are dropped")
     side_agreement_deg: float = Field(
-        3.0, gt=0, description="both walls in range must agree within this, per scan"
+        3.0, gt=0, le=45, description="both walls in range must agree within this, per scan"
     )
     prior_gate_deg: float = Field(
-        8.0, gt=0, description="reject angles this far from the pose's heading (or 3 sigma)"
+        8.0, gt=0, le=180, description="reject angles this far from the pose's heading (or 3 sigma)"
     )
     scan_outlier_deg: float = Field(
-        4.0, gt=0, description="a scan this far from the window's median is dropped"
+        4.0, gt=0, le=45, description="a scan this far from the window's median is dropped"
     )
     footprint_margin_mm: float = Field(
-        50.0, ge=0, description="added to the cone's footprint when checking doors/openings"
+        50.0,
+        ge=0,
+        le=DISTANCE_MM,
+        description="added to the cone's footprint when checking doors/openings",
     )
 
 
 class DoorConfig(Section):
     """Seed 000 door detection by a sliding window over one side sensor."""
 
-    jump_mm: float = Field(80.0, gt=0, description="newer-half mean minus older-half mean")
-    door_width_mm: float = Field(900.0, gt=0)
-    max_door_jump_mm: float = Field(
-        350.0, gt=0, description="larger jumps are an opening or an open door, not a recess"
+    jump_mm: float = Field(
+        80.0, gt=0, le=DISTANCE_MM, description="newer-half mean minus older-half mean"
     )
-    min_readings_per_door: int = Field(2, ge=1)
-    max_readings_per_door: int = Field(60, ge=1)
+    door_width_mm: float = Field(900.0, gt=0, le=DISTANCE_MM)
+    max_door_jump_mm: float = Field(
+        350.0,
+        gt=0,
+        le=DISTANCE_MM,
+        description="larger jumps are an opening or an open door, not a recess",
+    )
+    min_readings_per_door: int = Field(2, ge=1, le=1000)
+    max_readings_per_door: int = Field(60, ge=1, le=1000)
     min_speed_mm_s: float = Field(
-        20.0, ge=0, description="readings taken slower than this are not added to the window"
+        20.0,
+        ge=0,
+        le=SPEED_MM_S,
+        description="readings taken slower than this are not added to the window",
     )
     max_side_distance_mm: float = Field(
-        1500.0, gt=0, description="walls further than this are not used (noisy readings)"
+        1500.0,
+        gt=0,
+        le=RANGE_MM,
+        description="walls further than this are not used (noisy readings)",
     )
     match_gate_mm: float = Field(
-        1200.0, gt=0, description="a detection further than this from a plan door is unmatched"
+        1200.0,
+        gt=0,
+        le=LENGTH_MM,
+        description="a detection further than this from a plan door is unmatched",
     )
     max_feature_mm: float = Field(
         2500.0,
         gt=0,
+        le=LENGTH_MM,
         description="travel after a rising edge without the wall coming back: report the door "
         "from its near edge alone (wider than the 1700 mm openings)",
     )
+
+    @model_validator(mode="after")
+    def _window_fits(self) -> DoorConfig:
+        if self.max_readings_per_door < self.min_readings_per_door:
+            raise ValueError("max_readings_per_door must not be below min_readings_per_door")
+        return self
 
 
 class StateConfig(Section):
@@ -270,38 +392,52 @@ class StateConfig(Section):
 
     initial_floor: int = 2
     turn_rate_dps: float = Field(
-        5.0, ge=0, description="gyro yaw rate above which the robot counts as turning"
+        5.0, ge=0, le=360, description="gyro yaw rate above which the robot counts as turning"
     )
     gyro_weight: float = Field(
         0.98, ge=0, le=1, description="seed 004 complementary filter weight of the gyro in turns"
     )
     gyro_calibration_samples: int = Field(
-        25, ge=1, description="at-rest gyro samples for the seed 004 offset and noise band"
+        25,
+        ge=1,
+        le=10_000,
+        description="at-rest gyro samples for the seed 004 offset and noise band",
     )
     encoder_sigma_fraction: float = Field(
-        0.02, ge=0, description="odometry distance 1-sigma as a fraction of distance"
+        0.02, ge=0, le=1, description="odometry distance 1-sigma as a fraction of distance"
     )
     heading_sigma_deg_per_m: float = Field(
-        0.5, ge=0, description="heading random walk per metre travelled"
+        0.5, ge=0, le=90, description="heading random walk per metre travelled"
     )
     heading_sigma_deg_per_rad_turned: float = Field(
         3.0,
         ge=0,
+        le=90,
         description="heading 1-sigma a turn of one radian adds (gyro scale, slip in turns); a "
         "random walk, so it grows with the square root of the angle turned",
     )
-    uwb_sigma_mm: float = Field(100.0, gt=0, description="1-sigma of a quality-100 UWB fix")
+    uwb_sigma_mm: float = Field(
+        100.0, gt=0, le=DISTANCE_MM, description="1-sigma of a quality-100 UWB fix"
+    )
     uwb_gate_sigma: float = Field(
-        4.0, gt=0, description="fixes further than this (Mahalanobis) are outliers"
+        4.0, gt=0, le=100, description="fixes further than this (Mahalanobis) are outliers"
     )
     uwb_max_rejected: int = Field(
-        20, ge=1, description="after this many rejected fixes in a row the filter re-seeds"
+        20,
+        ge=1,
+        le=10_000,
+        description="after this many rejected fixes in a row the filter re-seeds",
     )
-    door_sigma_mm: float = Field(40.0, gt=0, description="1-sigma of a matched door landmark")
-    wall_sigma_mm: float = Field(30.0, gt=0, description="1-sigma of a wall-distance fix")
+    door_sigma_mm: float = Field(
+        40.0, gt=0, le=DISTANCE_MM, description="1-sigma of a matched door landmark"
+    )
+    wall_sigma_mm: float = Field(
+        30.0, gt=0, le=DISTANCE_MM, description="1-sigma of a wall-distance fix"
+    )
     speed_window_s: float = Field(
         0.1,
         gt=0,
+        le=10,
         description="speed and yaw rate are averaged over this much odometry: one telemetry "
         "step is a few ticks and a jittery time stamp, too coarse to size the door window",
     )
@@ -310,132 +446,228 @@ class StateConfig(Section):
 class MotionConfig(Section):
     """The motion module: lane keeping, the speed profile, the safety gate, going around."""
 
-    cruise_speed_mm_s: float = Field(500.0, gt=0)
+    cruise_speed_mm_s: float = Field(500.0, gt=0, le=SPEED_MM_S)
     max_speed_mm_s: float = Field(
         800.0,
         gt=0,
+        le=SPEED_MM_S,
         description="the robot's rated speed, whatever an instruction asks: from 1 m/s it "
         "needs 1.2 m to stop, beyond where it reliably sees a chair's pole or someone "
         "stepping in 1 m ahead (docs/safety.md)",
     )
     approach_speed_mm_s: float = Field(
-        150.0, gt=0, description="speed over the last approach_mm before a target door"
+        150.0,
+        gt=0,
+        le=SPEED_MM_S,
+        description="speed over the last approach_mm before a target door",
     )
     approach_mm: float = Field(
-        1200.0, ge=0, description="slow down this far before a door so its detection can land"
+        1200.0,
+        ge=0,
+        le=LENGTH_MM,
+        description="slow down this far before a door so its detection can land",
     )
-    creep_speed_mm_s: float = Field(30.0, gt=0, description="least speed while still short")
-    accel_mm_s2: float = Field(300.0, gt=0, description="profile limit, below the motor ramp")
+    creep_speed_mm_s: float = Field(
+        30.0, gt=0, le=SPEED_MM_S, description="least speed while still short"
+    )
+    accel_mm_s2: float = Field(
+        300.0, gt=0, le=ACCEL_MM_S2, description="profile limit, below the motor ramp"
+    )
     wall_distance_mm: float = Field(
-        300.0, gt=0, description="keep right: gap between the body's side and the wall"
+        300.0,
+        gt=0,
+        le=DISTANCE_MM,
+        description="keep right: gap between the body's side and the wall",
     )
-    stale_safety_s: float = Field(0.2, gt=0, description="older collision verdicts mean stop")
-    stale_pose_s: float = Field(0.5, gt=0, description="older pose estimates mean stop")
-    stop_tolerance_mm: float = Field(50.0, gt=0)
-    heading_tolerance_deg: float = Field(3.0, gt=0, description="a turn is done within this")
+    stale_safety_s: float = Field(0.2, gt=0, le=5, description="older collision verdicts mean stop")
+    stale_pose_s: float = Field(0.5, gt=0, le=5, description="older pose estimates mean stop")
+    stop_tolerance_mm: float = Field(50.0, gt=0, le=DISTANCE_MM)
+    heading_tolerance_deg: float = Field(3.0, gt=0, le=45, description="a turn is done within this")
     period_s: float = Field(
-        0.05, gt=0, description="control period; the motor driver's command timeout must be longer"
+        0.05,
+        gt=0,
+        le=1,
+        description="control period; the motor driver's command timeout must be longer",
     )
-    heading_gain: float = Field(2.0, gt=0, description="rad/s of turn per rad of heading error")
+    heading_gain: float = Field(
+        2.0, gt=0, le=100, description="rad/s of turn per rad of heading error"
+    )
     lane_lookahead_mm: float = Field(
         800.0,
         gt=0,
+        le=LENGTH_MM,
         description="lane keeping aims at the lane this far ahead (pure pursuit); shorter "
         "weaves: with the heading hold's gain it sets the damping of the lateral loop",
     )
-    max_lane_angle_deg: float = Field(20.0, gt=0, description="steepest angle to regain a lane")
-    max_turn_rate_dps: float = Field(45.0, gt=0)
-    turn_accel_dps2: float = Field(90.0, gt=0)
+    max_lane_angle_deg: float = Field(
+        20.0, gt=0, le=90, description="steepest angle to regain a lane"
+    )
+    max_turn_rate_dps: float = Field(45.0, gt=0, le=360)
+    turn_accel_dps2: float = Field(90.0, gt=0, le=3600)
     # Local planning around obstacles (seed 003: costmap with inflation + DWA).
-    costmap_resolution_mm: float = Field(50.0, gt=0)
-    costmap_size_mm: float = Field(6000.0, gt=0, description="square window around the robot")
-    obstacle_memory_s: float = Field(8.0, gt=0, description="unseen obstacle cells expire")
+    costmap_resolution_mm: float = Field(50.0, gt=0, le=1000)
+    costmap_size_mm: float = Field(
+        6000.0, gt=0, le=LENGTH_MM, description="square window around the robot"
+    )
+    obstacle_memory_s: float = Field(8.0, gt=0, le=600, description="unseen obstacle cells expire")
     wall_margin_mm: float = Field(
-        60.0, ge=0, description="a reading within this of the plan's walls is the wall"
+        60.0,
+        ge=0,
+        le=DISTANCE_MM,
+        description="a reading within this of the plan's walls is the wall",
     )
     wall_heading_tolerance_deg: float = Field(
         3.0,
         ge=0,
+        le=45,
         description="the cone is widened by this when asking whether a wall explains a "
         "reading: at a grazing wall one degree of heading error moves the return ~100 mm",
     )
     clear_heading_sigmas: float = Field(
         2.0,
         ge=0,
+        le=10,
         description="a cone clears only where it looks for certain: narrowed on each side by "
         "this many of the pose's heading sigmas, plus what the robot turns in pose_lag_s",
     )
     pose_lag_s: float = Field(
-        0.1, ge=0, description="how far the pose may lag the sensors while turning"
+        0.1, ge=0, le=2, description="how far the pose may lag the sensors while turning"
     )
     side_clearance_mm: float = Field(
         100.0,
         ge=0,
+        le=DISTANCE_MM,
         description="least gap kept to a plan wall: above the collision module's "
         "side radius plus its hysteresis, so going round never trips it",
     )
     obstacle_clearance_mm: float = Field(
-        100.0, ge=0, description="least gap kept to an obstacle, for the same reason"
+        100.0,
+        ge=0,
+        le=DISTANCE_MM,
+        description="least gap kept to an obstacle, for the same reason",
     )
-    inflation_mm: float = Field(400.0, ge=0, description="cost decays to zero over this")
-    lookahead_mm: float = Field(2500.0, gt=0, description="lane checked for obstacles this far")
+    inflation_mm: float = Field(
+        400.0, ge=0, le=DISTANCE_MM, description="cost decays to zero over this"
+    )
+    lookahead_mm: float = Field(
+        2500.0, gt=0, le=LENGTH_MM, description="lane checked for obstacles this far"
+    )
     static_confirm_s: float = Field(
-        1.5, gt=0, description="an obstacle must stand still this long to be planned around"
+        1.5, gt=0, le=60, description="an obstacle must stand still this long to be planned around"
     )
-    static_tolerance_mm: float = Field(100.0, gt=0, description="'still': moved less than this")
-    dwa_horizon_s: float = Field(2.0, gt=0)
-    dwa_speed_samples: int = Field(6, ge=2)
-    dwa_turn_samples: int = Field(15, ge=3)
+    static_tolerance_mm: float = Field(
+        100.0, gt=0, le=DISTANCE_MM, description="'still': moved less than this"
+    )
+    dwa_horizon_s: float = Field(2.0, gt=0, le=10)
+    dwa_speed_samples: int = Field(6, ge=2, le=100)
+    dwa_turn_samples: int = Field(15, ge=3, le=100)
 
 
 class ElevatorConfig(Section):
     """How long each elevator step may take before the robot reports, retries or aborts."""
 
-    call_timeout_s: float = Field(60.0, gt=0, description="car and open doors, per call")
-    call_retries: int = Field(2, ge=0, description="calls repeated before asking the operator")
-    ride_timeout_s: float = Field(90.0, gt=0, description="car at the other floor, doors open")
+    call_timeout_s: float = Field(60.0, gt=0, le=WAIT_S, description="car and open doors, per call")
+    call_retries: int = Field(
+        2, ge=0, le=10, description="calls repeated before asking the operator"
+    )
+    ride_timeout_s: float = Field(
+        90.0, gt=0, le=WAIT_S, description="car at the other floor, doors open"
+    )
     operator_timeout_s: float = Field(
-        300.0, gt=0, description="then the step is given up and the delivery fails"
+        300.0, gt=0, le=WAIT_S, description="then the step is given up and the delivery fails"
     )
     car_depth_mm: float = Field(
-        900.0, gt=0, description="how far past the door line the robot parks in the car"
+        900.0,
+        gt=0,
+        le=DISTANCE_MM,
+        description="how far past the door line the robot parks in the car",
     )
 
 
 class NavigationConfig(Section):
     """Delivery timing: nothing waits forever."""
 
-    base_room: str = Field("Tea room", description="where cups are loaded and the robot parks")
-    base_depth_mm: float = Field(
-        700.0, gt=0, description="parking spot: this far inside the base room's door line"
+    base_room: str = Field(
+        "Tea room", min_length=1, description="where cups are loaded and the robot parks"
     )
-    loading_timeout_s: float = Field(600.0, gt=0, description="no cup by then: failed")
-    pickup_timeout_s: float = Field(180.0, gt=0, description="no pickup by then: return")
-    blocked_report_s: float = Field(20.0, gt=0, description="then 'blocked' is reported")
+    base_depth_mm: float = Field(
+        700.0,
+        gt=0,
+        le=LENGTH_MM,
+        description="parking spot: this far inside the base room's door line",
+    )
+    loading_timeout_s: float = Field(600.0, gt=0, le=WAIT_S, description="no cup by then: failed")
+    pickup_timeout_s: float = Field(180.0, gt=0, le=WAIT_S, description="no pickup by then: return")
+    blocked_report_s: float = Field(20.0, gt=0, le=WAIT_S, description="then 'blocked' is reported")
     on_blocked: Literal["wait", "return"] = "wait"
     blocked_give_up_s: float = Field(
-        600.0, gt=0, description="blocked this long: fail and return whatever on_blocked says"
+        600.0,
+        gt=0,
+        le=WAIT_S,
+        description="blocked this long: fail and return whatever on_blocked says",
     )
     door_side_lane: bool = Field(
         True, description="pull over to the target door's side for the last stretch"
     )
-    pull_over_mm: float = Field(3000.0, ge=0, description="how early to cross to the door side")
+    pull_over_mm: float = Field(
+        3000.0, ge=0, le=LENGTH_MM, description="how early to cross to the door side"
+    )
     elevator: ElevatorConfig = ElevatorConfig()
 
 
 class WebConfig(Section):
-    host: str = "127.0.0.1"
+    host: str = Field("127.0.0.1", min_length=1)
     port: int = Field(8080, ge=0, le=65535)
-    operator_token_env: str = "COFFEEBOT_OPERATOR_TOKEN"
-    drinks: list[str] = ["espresso", "americano", "latte", "cappuccino", "tea"]
-    max_body_bytes: int = Field(16_384, gt=0, description="larger request bodies get 413")
-    order_burst: int = Field(5, ge=1, description="orders one client may place back to back")
-    order_refill_s: float = Field(12.0, gt=0, description="one more order allowed per this")
-    stream_period_s: float = Field(0.5, gt=0, description="inspector stream frame interval")
+    allowed_hosts: list[str] = Field(
+        [],
+        description="names the web answers to (the Host header) besides IP addresses, "
+        "localhost and this machine's own name: anything else is refused, so a web page "
+        "elsewhere cannot reach the API by pointing its own name at the robot (DNS rebinding)",
+    )
+    operator_token_env: str = Field("COFFEEBOT_OPERATOR_TOKEN", min_length=1)
+    drinks: list[Annotated[str, Field(min_length=1, max_length=DRINK_NAME_CHARS)]] = Field(
+        ["espresso", "americano", "latte", "cappuccino", "tea"], min_length=1
+    )
+    max_body_bytes: int = Field(
+        16_384, gt=0, le=1_048_576, description="larger request bodies get 413"
+    )
+    order_burst: int = Field(
+        5, ge=1, le=1000, description="orders one client may place back to back"
+    )
+    order_refill_s: float = Field(
+        12.0, gt=0, le=3600, description="one more order allowed per this"
+    )
+    stream_period_s: float = Field(0.5, gt=0, le=60, description="inspector stream frame interval")
+
+    @model_validator(mode="after")
+    def _distinct_drinks(self) -> WebConfig:
+        repeated = sorted({d for d in self.drinks if self.drinks.count(d) > 1})
+        if repeated:
+            raise ValueError(f"drinks listed twice: {repeated}")
+        return self
 
 
 class StoreConfig(Section):
+    """The order database and what happens when it cannot be written (locked, read only,
+    full): every change is kept and retried, and the operator is told."""
+
     path: Path = Path("var/orders.sqlite3")
+    busy_timeout_s: float = Field(
+        1.0,
+        gt=0,
+        le=60,
+        description="a write waits this long for another process's lock before it is retried "
+        "later; reads queue behind it, so keep it short",
+    )
+    retry_max_s: float = Field(
+        2.0, gt=0, le=60, description="longest wait between two attempts at a failed write"
+    )
+    failed_after_s: float = Field(
+        30.0,
+        gt=0,
+        le=WAIT_S,
+        description="unwritable this long: the orders' health says failed (degraded before)",
+    )
 
 
 class LoggingConfig(Section):
@@ -448,15 +680,21 @@ class WatchdogConfig(Section):
     topics: list[str] = Field(
         ["safety/collision"], min_length=1, description="each must stay fresh"
     )
-    max_age_s: float = Field(1.0, gt=0, description="older than this: control loop stalled")
-    max_loop_lag_s: float = Field(1.0, gt=0, description="event loop this late: stalled")
+    max_age_s: float = Field(1.0, gt=0, le=60, description="older than this: control loop stalled")
+    max_loop_lag_s: float = Field(1.0, gt=0, le=60, description="event loop this late: stalled")
 
 
 class SupervisionConfig(Section):
-    restart_backoff_s: float = Field(0.5, gt=0)
-    restart_backoff_max_s: float = Field(10.0, gt=0)
-    max_restarts: int = Field(5, ge=0, description="within failure_window_s, then failed")
-    failure_window_s: float = Field(60.0, gt=0)
+    restart_backoff_s: float = Field(0.5, gt=0, le=60)
+    restart_backoff_max_s: float = Field(10.0, gt=0, le=3600)
+    max_restarts: int = Field(5, ge=0, le=1000, description="within failure_window_s, then failed")
+    failure_window_s: float = Field(60.0, gt=0, le=WAIT_S)
+
+    @model_validator(mode="after")
+    def _backoff_grows(self) -> SupervisionConfig:
+        if self.restart_backoff_max_s < self.restart_backoff_s:
+            raise ValueError("restart_backoff_max_s must not be below restart_backoff_s")
+        return self
 
 
 class RobotConfig(Section):
@@ -492,14 +730,22 @@ def describe_validation_error(path: Path, error: ValidationError) -> str:
     return "\n".join(lines)
 
 
-def read_toml(path: Path) -> dict[str, Any]:
+def read_toml(path: Path, fail: Callable[[str], ConfigError] | None = None) -> dict[str, Any]:
+    """The document in a TOML file; a file that cannot be read or parsed raises
+    ``fail(problem)`` (by default a :class:`ConfigError` "<path>: <problem>"), one line."""
     try:
-        with path.open("rb") as fh:
-            return tomllib.load(fh)
+        return tomllib.loads(path.read_bytes().decode("utf-8"))
     except FileNotFoundError:
-        raise ConfigError(f"{path}: file not found") from None
+        problem = "file not found"
+    except IsADirectoryError:
+        problem = "is a directory, not a file"
+    except OSError as exc:
+        problem = f"cannot be read: {exc.strerror or exc}"
+    except UnicodeDecodeError as exc:
+        problem = f"not UTF-8 text (byte {exc.start} is {exc.object[exc.start]:#04x})"
     except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path}: not valid TOML: {exc}") from None
+        problem = f"not valid TOML: {exc}"
+    raise ConfigError(f"{path}: {problem}") if fail is None else fail(problem)
 
 
 def load_robot_config(path: str | Path) -> RobotConfig:

@@ -29,6 +29,11 @@ class HardwareError(CoffeebotError):
     """A device that cannot be used: it answers wrongly, or fails its check."""
 
 
+class StoreError(CoffeebotError):
+    """The order database cannot be opened, read or written (locked by another process, read
+    only, full, not a database), naming the file and what is wrong."""
+
+
 class OrderError(CoffeebotError):
     """An order request that cannot be carried out as asked (the order is in a state that
     does not allow it)."""

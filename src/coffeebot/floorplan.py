@@ -15,18 +15,24 @@ from __future__ import annotations
 
 import itertools
 import math
-import tomllib
 from collections.abc import Iterator, Sequence
 from functools import cached_property
 from pathlib import Path
-from typing import Any, Literal, NamedTuple
+from typing import Annotated, Any, Literal, NamedTuple
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from coffeebot.config import read_toml
 from coffeebot.errors import ConfigError
 
 Side = Literal["left", "right"]
+
+PLAN_MM = 1_000_000.0
+"""Every coordinate lies within a kilometre of the origin: a survey typo, not a building."""
+Coordinate = Annotated[float, Field(ge=-PLAN_MM, le=PLAN_MM)]
+Size = Annotated[float, Field(gt=0, le=100_000)]
+"""A width, depth or height: positive and under 100 m."""
 
 
 class FloorPlanError(ConfigError):
@@ -43,15 +49,18 @@ class FloorPlanError(ConfigError):
 
 
 class _Model(BaseModel):
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    """Unknown keys, ``nan`` and ``inf`` are refused: a NaN position makes every comparison
+    false, so the robot would never reach (or stop at) it."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
 
 class Hallway(_Model):
     """The main hallway of a floor: a straight axis and a width."""
 
-    start: tuple[float, float]
-    end: tuple[float, float]
-    width_mm: float = Field(1700.0, gt=0)
+    start: tuple[Coordinate, Coordinate]
+    end: tuple[Coordinate, Coordinate]
+    width_mm: Size = 1700.0
     start_closed: bool = True
     end_closed: bool = True
 
@@ -71,10 +80,10 @@ class Door(_Model):
     id: str
     room: str
     side: Side
-    at_mm: float = Field(description="distance of the door centre along the hallway axis")
-    width_mm: float = Field(900.0, gt=0)
-    recess_mm: float = Field(100.0, ge=0)
-    height_mm: float = Field(2100.0, gt=0)
+    at_mm: Coordinate = Field(description="distance of the door centre along the hallway axis")
+    width_mm: Size = 900.0
+    recess_mm: float = Field(100.0, ge=0, le=10_000)
+    height_mm: Size = 2100.0
     kind: Literal["office", "elevator", "tea_room", "other"] = "office"
     open: bool = False
 
@@ -95,9 +104,9 @@ class Opening(_Model):
 
     id: str
     side: Side
-    at_mm: float
-    width_mm: float = Field(1700.0, gt=0)
-    depth_mm: float = Field(3000.0, gt=0, description="how far its side walls run")
+    at_mm: Coordinate
+    width_mm: Size = 1700.0
+    depth_mm: Size = Field(3000.0, description="how far its side walls run")
     end: Literal["open", "wall"] = "open"
     name: str = ""
 
@@ -110,8 +119,8 @@ class Wall(_Model):
     """A free-form wall as a polyline of floor-frame points."""
 
     id: str
-    points: list[tuple[float, float]] = Field(min_length=2)
-    height_mm: float | None = Field(None, gt=0)
+    points: list[tuple[Coordinate, Coordinate]] = Field(min_length=2)
+    height_mm: Size | None = None
     closed: bool = False
 
 
@@ -119,8 +128,8 @@ class AngleZone(_Model):
     """A stretch of hallway where both walls are flat, so side sensors can measure heading."""
 
     id: str
-    from_mm: float
-    to_mm: float
+    from_mm: Coordinate
+    to_mm: Coordinate
 
     @model_validator(mode="after")
     def _ordered(self) -> AngleZone:
@@ -137,9 +146,9 @@ class Anchor(_Model):
         description="the anchor's UWB short address, 4 upper-case hex digits, as the tag "
         "reports it (this is how a fix's anchors are matched to a floor)",
     )
-    x_mm: float
-    y_mm: float
-    z_mm: float = 2400.0
+    x_mm: Coordinate
+    y_mm: Coordinate
+    z_mm: float = Field(2400.0, ge=-10_000, le=100_000)
 
 
 class WallSegment(NamedTuple):
@@ -169,9 +178,9 @@ def segment_distances(
 
 
 class Floor(_Model):
-    level: int
+    level: int = Field(ge=-100, le=1000)
     name: str = ""
-    wall_height_mm: float = Field(2700.0, gt=0)
+    wall_height_mm: Size = 2700.0
     hallway: Hallway
     doors: list[Door] = []
     openings: list[Opening] = []
@@ -350,12 +359,7 @@ class FloorPlan(_Model):
 def load_floorplan(path: str | Path) -> FloorPlan:
     """Read and validate a floor plan TOML file; every problem raises :class:`FloorPlanError`."""
     path = Path(path)
-    try:
-        raw = tomllib.loads(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise FloorPlanError(path, "file", exc.strerror or str(exc)) from exc
-    except tomllib.TOMLDecodeError as exc:
-        raise FloorPlanError(path, "TOML syntax", str(exc)) from exc
+    raw = read_toml(path, lambda problem: FloorPlanError(path, "file", problem))
     return parse_floorplan(raw, path)
 
 

@@ -131,5 +131,9 @@ def render_command(args: argparse.Namespace) -> int:
     except KeyError as exc:
         print(f"coffeebot: {args.file}: {exc.args[0]}", file=sys.stderr)
         return 2
-    args.output.write_text(svg, encoding="utf-8")
+    try:
+        args.output.write_text(svg, encoding="utf-8")
+    except OSError as exc:
+        print(f"coffeebot: cannot write {args.output}: {exc.strerror or exc}", file=sys.stderr)
+        return 1
     return 0

@@ -204,12 +204,13 @@ class OrderStatus(StrEnum):
 
 
 class OrderDispatch(Message):
-    """The orders module hands the head of the queue to navigation, one order at a time."""
+    """The orders module hands the head of the queue to navigation, one order at a time.
+
+    No customer's name: everything on the board can be seen on the inspector."""
 
     order_id: str
     room: str
     drink: str
-    name: str
 
 
 class DeliveryProblem(StrEnum):
@@ -224,6 +225,8 @@ class DeliveryProblem(StrEnum):
     ELEVATOR = "elevator"
     """The elevator does not answer, or the robot cannot confirm the floor it brought it to."""
     MOTION_SILENT = "motion_silent"
+    MOTOR_CONTROLLER = "motor_controller"
+    """The motor controller does not answer: the robot cannot drive until it does."""
 
 
 class DeliveryUpdate(Message):
@@ -356,6 +359,8 @@ class StopCause(StrEnum):
     STALE_VERDICT = "stale_verdict"
     COLLISION_STOP = "collision_stop"
     NO_FRESH_POSE = "no_fresh_pose"
+    MOTOR_SILENT = "motor_silent"
+    """No telemetry from the motor controller: hung, unplugged, or its driver is down."""
     SHUTTING_DOWN = "shutting_down"
 
 

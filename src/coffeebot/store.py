@@ -3,7 +3,17 @@
 Every order change is one committed transaction before anyone is told about it, so a daemon
 that is killed at any moment restarts with exactly the orders people were shown. Status
 changes are conditional updates (``UPDATE ... WHERE status IN (...)``), which makes "cancel
-while queued" and "dispatch the head of the queue" atomic without an application lock.
+while queued" and "dispatch the head of the queue" atomic without an application lock; the
+changed row is read back in the same transaction, so a change is either stored and returned
+or not made at all.
+
+What identifies an order (its ``id``: on the board, in the logs, on the operator's pages) is
+kept apart from what authorizes acting on it: a per-order key, handed to the customer once
+in their status link and stored only as a hash.
+
+Every SQLite failure (the file locked by another process, read only, the disk full, not a
+database at all) is a :class:`~coffeebot.errors.StoreError` naming the file; the orders
+module retries what it must not lose.
 
 sqlite3 blocks, so all database work runs on one private thread; the event loop only awaits.
 """
@@ -11,10 +21,13 @@ sqlite3 blocks, so all database work runs on one private thread; the event loop 
 from __future__ import annotations
 
 import asyncio
+import contextlib
+import hashlib
+import hmac
 import secrets
 import sqlite3
 import time
-from collections.abc import Callable, Collection, Sequence
+from collections.abc import Callable, Collection, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,12 +35,17 @@ from typing import Any, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
 
+from coffeebot.config import DRINK_NAME_CHARS
+from coffeebot.errors import StoreError
 from coffeebot.messages import OrderStatus
 
 T = TypeVar("T")
 
 ACTIVE = tuple(s for s in OrderStatus if not s.final)
 IN_FLIGHT = tuple(s for s in ACTIVE if s is not OrderStatus.QUEUED)
+
+SCHEMA_VERSION = 2
+"""1: the first table; 2: each order's key hash."""
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS orders (
@@ -41,7 +59,8 @@ CREATE TABLE IF NOT EXISTS orders (
     status     TEXT NOT NULL,
     detail     TEXT NOT NULL,
     created_at REAL NOT NULL,
-    updated_at REAL NOT NULL
+    updated_at REAL NOT NULL,
+    key_hash   TEXT NOT NULL DEFAULT ''
 );
 CREATE INDEX IF NOT EXISTS orders_status ON orders (status, seq);
 """
@@ -67,7 +86,7 @@ class NewOrder(BaseModel):
     model_config = ConfigDict(extra="forbid", str_strip_whitespace=True, frozen=True)
 
     room: str = Field(min_length=1, max_length=16)
-    drink: str = Field(min_length=1, max_length=40)
+    drink: str = Field(min_length=1, max_length=DRINK_NAME_CHARS)
     name: str = Field(min_length=1, max_length=40)
     notes: str = Field("", max_length=200)
 
@@ -84,7 +103,7 @@ class NewOrder(BaseModel):
 
 
 class Order(BaseModel):
-    """A stored order as the API and the pages show it."""
+    """A stored order as the API and the pages show it (never with its key)."""
 
     model_config = ConfigDict(frozen=True)
 
@@ -103,6 +122,17 @@ class Order(BaseModel):
     )
 
 
+class PlacedOrder(Order):
+    """A new order as its customer is answered, the one time its key is shown."""
+
+    key: str = Field(description="authorizes following, cancelling and confirming the order")
+
+
+def key_hash(key: str) -> str:
+    """What is stored of an order's key: a 128-bit random key needs no slow hash."""
+    return hashlib.sha256(key.encode("utf-8", "surrogateescape")).hexdigest()
+
+
 def _order(row: sqlite3.Row) -> Order:
     """A row as an ``Order``; the row's ``ahead`` column, if selected, only counts while active."""
     data = dict(row)
@@ -114,74 +144,173 @@ def _marks(values: Sequence[Any]) -> str:
     return ", ".join("?" for _ in values)
 
 
-class OrderStore:
-    """The order table. Open once per process; ``close`` when the daemon has stopped."""
+def _refusal(path: Path, exc: sqlite3.Error) -> StoreError:
+    """Why the file cannot be used at start, and what the operator can do about it."""
+    text = str(exc)
+    if isinstance(exc, sqlite3.DatabaseError) and ("not a database" in text or "malformed" in text):
+        return StoreError(
+            f"{path}: not a usable SQLite database ({text}); move the file aside to start "
+            "with an empty queue, or set [store] path to another file"
+        )
+    return StoreError(
+        f"{path}: cannot open or create the order database ({text}); [store] path must name "
+        "a file in a directory the service may write (SQLite keeps -wal and -shm files beside "
+        "it)"
+    )
 
-    def __init__(self, path: str | Path, wall_clock: Callable[[], float] = time.time) -> None:
+
+class OrderStore:
+    """The order table. Open once per process; ``close`` when the daemon has stopped.
+
+    Opening refuses a file that is not a database, is damaged or cannot be created with one
+    :class:`StoreError` line; later failures raise :class:`StoreError` too.
+    """
+
+    def __init__(
+        self,
+        path: str | Path,
+        wall_clock: Callable[[], float] = time.time,
+        *,
+        busy_timeout_s: float = 1.0,
+    ) -> None:
         self.path = Path(path)
         self._now = wall_clock
+        self._busy_timeout_ms = round(busy_timeout_s * 1000)
         self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="order-store")
-        self._db = self._executor.submit(self._open).result()
+        self._closed = False
+        try:
+            self._db = self._executor.submit(self._open).result()
+        except BaseException:
+            self._executor.shutdown()
+            raise
 
     def _open(self) -> sqlite3.Connection:
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        db = sqlite3.connect(self.path, isolation_level=None, check_same_thread=False)
-        db.row_factory = sqlite3.Row
-        db.execute("PRAGMA journal_mode=WAL")
-        # FULL: a committed order survives a power cut, not only a process crash; the robot
-        # runs on a battery and orders arrive a few per minute, so the fsync is cheap.
-        db.execute("PRAGMA synchronous=FULL")
-        db.execute("PRAGMA busy_timeout=5000")
-        db.executescript(_SCHEMA)
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise StoreError(
+                f"{self.path}: cannot create the directory {self.path.parent}: "
+                f"{exc.strerror or exc}; check [store] path"
+            ) from None
+        if self.path.is_dir():
+            raise StoreError(f"{self.path}: is a directory; [store] path must name a file")
+        db: sqlite3.Connection | None = None
+        try:
+            db = sqlite3.connect(self.path, isolation_level=None, check_same_thread=False)
+            db.row_factory = sqlite3.Row
+            db.execute(f"PRAGMA busy_timeout={self._busy_timeout_ms}")
+            db.execute("PRAGMA journal_mode=WAL")
+            # FULL: a committed order survives a power cut, not only a process crash; the robot
+            # runs on a battery and orders arrive a few per minute, so the fsync is cheap.
+            db.execute("PRAGMA synchronous=FULL")
+            damage = db.execute("PRAGMA quick_check").fetchone()[0]
+            if damage != "ok":
+                raise sqlite3.DatabaseError(f"database disk image is malformed: {damage}")
+            self._migrate(db)
+        except sqlite3.Error as exc:
+            if db is not None:
+                db.close()
+            raise _refusal(self.path, exc) from None
         return db
 
+    @staticmethod
+    def _migrate(db: sqlite3.Connection) -> None:
+        """Bring a file of an older version up to this one (a robot keeps its orders)."""
+        version = db.execute("PRAGMA user_version").fetchone()[0]
+        if version >= SCHEMA_VERSION:
+            return
+        exists = db.execute("SELECT 1 FROM sqlite_master WHERE name = 'orders'").fetchone()
+        columns = {row[1] for row in db.execute("PRAGMA table_info(orders)")}
+        if exists and "key_hash" not in columns:
+            db.execute("ALTER TABLE orders ADD COLUMN key_hash TEXT NOT NULL DEFAULT ''")
+        db.executescript(_SCHEMA)
+        db.execute(f"PRAGMA user_version={SCHEMA_VERSION}")
+
     async def _call(self, fn: Callable[[], T]) -> T:
-        return await asyncio.get_running_loop().run_in_executor(self._executor, fn)
+        """Run ``fn`` on the store's thread; an SQLite failure becomes a :class:`StoreError`."""
+
+        def guarded() -> T:
+            try:
+                return fn()
+            except sqlite3.Error as exc:
+                raise StoreError(f"order database {self.path}: {exc}") from exc
+
+        return await asyncio.get_running_loop().run_in_executor(self._executor, guarded)
+
+    @contextlib.contextmanager
+    def _transaction(self) -> Iterator[sqlite3.Connection]:
+        """One write transaction: committed, or rolled back if anything in it fails."""
+        self._db.execute("BEGIN IMMEDIATE")
+        try:
+            yield self._db
+            self._db.execute("COMMIT")
+        except BaseException:
+            with contextlib.suppress(sqlite3.Error):
+                self._db.execute("ROLLBACK")
+            raise
 
     def close(self) -> None:
+        """Close the database (again: nothing happens)."""
+        if self._closed:
+            return
+        self._closed = True
         self._executor.submit(self._db.close).result()
         self._executor.shutdown()
 
     async def journal_mode(self) -> str:
         return await self._call(lambda: self._db.execute("PRAGMA journal_mode").fetchone()[0])
 
-    async def add(self, new: NewOrder, client: str) -> Order:
-        """Store a new queued order under a fresh unguessable id (the id is the customer's key)."""
+    def _select(self, order_id: str) -> Order | None:
+        row = self._db.execute(
+            f"SELECT {_COLUMNS}, (SELECT COUNT(*) FROM orders a WHERE a.seq < o.seq"
+            f" AND a.status IN ({_marks(ACTIVE)})) AS ahead FROM orders o WHERE id = ?",
+            (*ACTIVE, order_id),
+        ).fetchone()
+        return None if row is None else _order(row)
+
+    async def add(self, new: NewOrder, client: str) -> PlacedOrder:
+        """Store a new queued order under a fresh id and key; the key is only returned here."""
         order_id = secrets.token_urlsafe(9)
+        key = secrets.token_urlsafe(16)
         now = self._now()
 
-        def insert() -> None:
-            self._db.execute(
-                "INSERT INTO orders (id, room, drink, name, notes, client, status, detail,"
-                " created_at, updated_at) VALUES (?, ?, ?, ?, ?, ?, ?, '', ?, ?)",
-                (
-                    order_id,
-                    new.room,
-                    new.drink,
-                    new.name,
-                    new.notes,
-                    client,
-                    OrderStatus.QUEUED.value,
-                    now,
-                    now,
-                ),
-            )
+        def insert() -> Order | None:
+            with self._transaction() as db:
+                db.execute(
+                    "INSERT INTO orders (id, room, drink, name, notes, client, status, detail,"
+                    " created_at, updated_at, key_hash) VALUES (?, ?, ?, ?, ?, ?, ?, '', ?, ?, ?)",
+                    (
+                        order_id,
+                        new.room,
+                        new.drink,
+                        new.name,
+                        new.notes,
+                        client,
+                        OrderStatus.QUEUED.value,
+                        now,
+                        now,
+                        key_hash(key),
+                    ),
+                )
+                return self._select(order_id)
 
-        await self._call(insert)
-        order = await self.get(order_id)
+        order = await self._call(insert)
         assert order is not None
-        return order
+        return PlacedOrder(**order.model_dump(), key=key)
 
     async def get(self, order_id: str) -> Order | None:
-        def select() -> Order | None:
-            row = self._db.execute(
-                f"SELECT {_COLUMNS}, (SELECT COUNT(*) FROM orders a WHERE a.seq < o.seq"
-                f" AND a.status IN ({_marks(ACTIVE)})) AS ahead FROM orders o WHERE id = ?",
-                (*ACTIVE, order_id),
-            ).fetchone()
-            return None if row is None else _order(row)
+        return await self._call(lambda: self._select(order_id))
 
-        return await self._call(select)
+    async def key_matches(self, order_id: str, key: str) -> bool:
+        """Whether ``key`` is the order's key (compared in constant time)."""
+
+        def stored() -> str | None:
+            row = self._db.execute("SELECT key_hash FROM orders WHERE id = ?", (order_id,))
+            found = row.fetchone()
+            return None if found is None else str(found[0])
+
+        expected = await self._call(stored)
+        return expected is not None and hmac.compare_digest(expected, key_hash(key))
 
     async def with_status(self, statuses: Sequence[OrderStatus], limit: int = -1) -> list[Order]:
         """Orders in any of ``statuses``, in order of arrival, at most ``limit`` (-1: all)."""
@@ -210,15 +339,16 @@ class OrderStore:
     ) -> Order | None:
         """Set ``status`` if the order is currently in ``allowed_from``; None if it was not."""
         sources = tuple(allowed_from)
-
-        def update() -> int:
-            cursor = self._db.execute(
-                f"UPDATE orders SET status = ?, detail = ?, updated_at = ?"
-                f" WHERE id = ? AND status IN ({_marks(sources)})",
-                (status.value, detail, self._now(), order_id, *sources),
-            )
-            return cursor.rowcount
-
-        if not sources or await self._call(update) == 0:
+        if not sources:
             return None
-        return await self.get(order_id)
+
+        def update() -> Order | None:
+            with self._transaction() as db:
+                cursor = db.execute(
+                    f"UPDATE orders SET status = ?, detail = ?, updated_at = ?"
+                    f" WHERE id = ? AND status IN ({_marks(sources)})",
+                    (status.value, detail, self._now(), order_id, *sources),
+                )
+                return self._select(order_id) if cursor.rowcount else None
+
+        return await self._call(update)

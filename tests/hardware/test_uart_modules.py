@@ -167,9 +167,62 @@ async def test_stale_command_becomes_stop(
         board.publish(MOTOR_COMMAND, MotorCommand(left_mm_s=0, right_mm_s=0))
         stale = motor_driver.counters.stale_stops
         await until(lambda: motor_driver.counters.stale_stops >= stale + 3)
-    # A stop that is not renewed leaves the robot standing: no second safety stop.
-    assert len(events(caplog, "safety_stop")) == 1
+    # A stop that is not renewed leaves the robot standing: no second safety stop, only the
+    # shutdown's own, which says that it got out.
+    assert causes(caplog, "safety_stop") == [
+        "no motor command for 0.25 s: motors stopped",
+        "shutdown: motors stopped",
+    ]
     assert causes(caplog, "safety_clear") == ["motor commands resumed"]
+
+
+async def test_shutdown_without_a_controller_says_what_stops_the_motors(
+    sim_motor: SimMotorController,
+    motor_driver: MotorDriver,
+    context_for: ContextFor,
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    caplog.set_level(logging.INFO)
+    async with running(motor_driver, context_for) as board:
+        await board.next(ODOMETRY, timeout=5.0)
+        sim_motor.unplug()
+        await until(lambda: motor_driver.counters.failures >= 1)
+    assert causes(caplog, "safety_stop") == []
+    assert any(
+        r.getMessage() == "shutdown: no motor controller connected to stop; "
+        "the controller's 200 ms watchdog stops the motors"
+        for r in caplog.records
+    )
+
+
+async def test_silent_controller_is_reported_failed_and_its_recovery_logged(
+    sim_motor: SimMotorController,
+    context_for: ContextFor,
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    caplog.set_level(logging.INFO)
+    driver = MotorDriver(
+        MotorConfig(port=sim_motor.port, telemetry_timeout_s=0.1),
+        read_timeout_s=0.02,
+        backoff_s=FAST_BACKOFF,
+    )
+    async with running(driver, context_for) as board:
+        await board.next(ODOMETRY, timeout=5.0)
+        # The timeout only bounds a failing test.
+        async with asyncio.timeout(5.0):
+            with board.subscribe(HEALTH) as health:
+                sim_motor.silent = True  # hung firmware: the port stays open, nothing comes
+                failed = (await health.get()).msg
+                assert failed.status is HealthStatus.FAILED
+                assert failed.detail.startswith("no telemetry from the motor controller for 0.1 s")
+                sim_motor.silent = False
+                assert (await health.get()).msg.status is HealthStatus.RUNNING
+    assert driver.counters.silences == 1
+    [silent] = events(caplog, "fault")
+    assert silent.subject == sim_motor.port
+    assert silent.cause == "no telemetry from the motor controller for 0.1 s"
+    [back] = causes(caplog, "reconnect")
+    assert back.startswith("telemetry resumed after ") and back.endswith(" s of silence")
 
 
 async def test_motor_survives_garbage_reset_and_unplug(

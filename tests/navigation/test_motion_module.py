@@ -17,6 +17,7 @@ from coffeebot.messages import (
     MOTION_STATUS,
     MOTOR_COMMAND,
     MOVE_INSTRUCTION,
+    ODOMETRY,
     CollisionStatus,
     CurrentState,
     EStop,
@@ -25,6 +26,7 @@ from coffeebot.messages import (
     MotionState,
     MotionStatus,
     MoveInstruction,
+    Odometry,
     RangeReading,
     RangeScan,
     ReadingStatus,
@@ -38,6 +40,9 @@ FLOOR = PLAN.floor(2)
 X, Y = FLOOR.from_hallway(10000, -295)
 POSE = estimate_at(2, X, Y)
 GO = CollisionStatus(state=SafetyState.GO, scan_seq=1, speed_limit_mm_s=1000.0)
+TELEMETRY = Odometry(
+    controller_time_ms=0, left_ticks=0, right_ticks=0, gyro_z_dps=0.0, left_mm_s=0.0, right_mm_s=0.0
+)
 
 
 class Rig:
@@ -47,15 +52,20 @@ class Rig:
         self.module = MotionModule(CONFIG, PLAN)
         self.daemon = Daemon(self.board, [self.module])
 
-    def feed(self, collision: CollisionStatus | None = GO) -> None:
+    def feed(self, collision: CollisionStatus | None = GO, telemetry: bool = True) -> None:
         self.board.publish(CURRENT_STATE, CurrentState(pose=POSE))
+        if telemetry:
+            self.board.publish(ODOMETRY, TELEMETRY)
         if collision is not None:
             self.board.publish(COLLISION, collision)
 
-    async def run_for(self, seconds: float, collision: CollisionStatus | None = GO) -> None:
-        """Advance time in control periods with fresh pose (and verdicts, unless None)."""
+    async def run_for(
+        self, seconds: float, collision: CollisionStatus | None = GO, telemetry: bool = True
+    ) -> None:
+        """Advance time in control periods with fresh pose and motor telemetry (unless told
+        otherwise), and verdicts (unless None)."""
         for _ in range(round(seconds / CONFIG.motion.period_s)):
-            self.feed(collision)
+            self.feed(collision, telemetry)
             await self.clock.advance(CONFIG.motion.period_s)
 
     def speed(self) -> float:
@@ -139,6 +149,24 @@ async def test_another_module_failing_does_not_hold_the_robot(rig: Rig) -> None:
     rig.board.publish(HEALTH, Health(module="door", status=HealthStatus.FAILED))
     await rig.run_for(0.2)
     assert rig.speed() > 0
+
+
+async def test_silent_motor_controller_stops_until_telemetry_resumes(rig: Rig) -> None:
+    await rig.run_for(1.0)
+    assert rig.speed() > 100
+    await rig.run_for(CONFIG.motor.telemetry_timeout_s * 2, telemetry=False)
+    assert rig.speed() == 0
+    status = motion_status(rig)
+    assert (status.state, status.stopped_by) == (MotionState.SAFETY_STOP, StopCause.MOTOR_SILENT)
+    assert status.detail.startswith("no telemetry from the motor controller for ")
+    await rig.run_for(1.0)
+    assert rig.speed() > 0
+
+
+async def test_no_telemetry_yet_means_no_motion(rig: Rig) -> None:
+    await rig.run_for(1.0, telemetry=False)
+    assert rig.speed() == 0
+    assert motion_status(rig).stopped_by is StopCause.MOTOR_SILENT
 
 
 async def test_estop_stops_and_release_resumes(rig: Rig) -> None:

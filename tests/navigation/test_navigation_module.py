@@ -28,6 +28,7 @@ from coffeebot.messages import (
     OperatorEvent,
     OrderDispatch,
     OrderStatus,
+    StopCause,
 )
 from coffeebot.modules.navigation import NavigationModule
 from coffeebot.navigation.route import RoutePlanner
@@ -120,7 +121,7 @@ async def test_delivery_to_the_other_floor_and_home(rig) -> None:
     clock, board, daemon, statuses = rig
     tasks = await run_stand(board, elevator=True)
     await daemon.start()
-    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o1", room="305", drink="tea", name="A"))
+    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o1", room="305", drink="tea"))
     await clock.advance(1.0)
     board.publish(OPERATOR_EVENT, OperatorEvent(kind="cup_loaded", order_id="o1"))
     await clock.advance(5.0)
@@ -142,7 +143,7 @@ async def test_delivery_to_the_other_floor_and_home(rig) -> None:
 async def test_no_cup_no_delivery(rig) -> None:
     clock, board, daemon, statuses = rig
     await daemon.start()
-    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o2", room="205", drink="tea", name="B"))
+    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o2", room="205", drink="tea"))
     await clock.advance(CONFIG.navigation.loading_timeout_s + 1)
     updates = [e.msg for e in iter(statuses.get_nowait, None)]
     assert [u.status for u in updates] == [OrderStatus.PREPARING, OrderStatus.FAILED]
@@ -154,7 +155,7 @@ async def test_nobody_at_the_door_takes_the_cup_back(rig) -> None:
     clock, board, daemon, statuses = rig
     tasks = await run_stand(board, elevator=True)
     await daemon.start()
-    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o3", room="205", drink="tea", name="C"))
+    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o3", room="205", drink="tea"))
     await clock.advance(1.0)
     board.publish(OPERATOR_EVENT, OperatorEvent(kind="cup_loaded", order_id="o3"))
     await clock.advance(CONFIG.navigation.pickup_timeout_s + 5)
@@ -168,7 +169,7 @@ async def test_silent_elevator_retries_then_asks_an_operator(rig) -> None:
     clock, board, daemon, statuses = rig
     tasks = await run_stand(board, elevator=False)
     await daemon.start()
-    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o4", room="305", drink="tea", name="D"))
+    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o4", room="305", drink="tea"))
     await clock.advance(1.0)
     board.publish(OPERATOR_EVENT, OperatorEvent(kind="cup_loaded", order_id="o4"))
     elevator = CONFIG.navigation.elevator
@@ -188,7 +189,7 @@ async def test_cancel_on_the_way_reports_cancelled(rig) -> None:
     clock, board, daemon, statuses = rig
     tasks = await run_stand(board, elevator=False)
     await daemon.start()
-    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o5", room="305", drink="tea", name="E"))
+    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o5", room="305", drink="tea"))
     await clock.advance(1.0)
     board.publish(OPERATOR_EVENT, OperatorEvent(kind="cup_loaded", order_id="o5"))
     await clock.advance(5.0)
@@ -197,3 +198,38 @@ async def test_cancel_on_the_way_reports_cancelled(rig) -> None:
     statuses_seen = [e.msg.status for e in iter(statuses.get_nowait, None)]
     assert statuses_seen[-1] is OrderStatus.CANCELLED
     await stop(tasks)
+
+
+async def held_by_silent_motors(board: Board) -> None:
+    """Motion whose safety gate holds the robot: the motor controller sends no telemetry."""
+    with board.subscribe(MOVE_INSTRUCTION) as instructions:
+        async for envelope in instructions:
+            board.publish(
+                MOTION_STATUS,
+                MotionStatus(
+                    instruction_id=envelope.msg.id,
+                    state=MotionState.SAFETY_STOP,
+                    remaining_mm=4000.0,
+                    detail="no telemetry from the motor controller for 0.6 s",
+                    stopped_by=StopCause.MOTOR_SILENT,
+                ),
+            )
+
+
+async def test_silent_motor_controller_is_the_orders_reason_at_once(rig) -> None:
+    clock, board, daemon, statuses = rig
+    motion = asyncio.create_task(held_by_silent_motors(board))
+    await daemon.start()
+    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o6", room="205", drink="tea"))
+    await clock.advance(1.0)
+    board.publish(OPERATOR_EVENT, OperatorEvent(kind="cup_loaded", order_id="o6"))
+    await clock.advance(3.0)
+    held = [e.msg for e in iter(statuses.get_nowait, None) if e.msg.problem is not None]
+    assert [u.problem for u in held] == [DeliveryProblem.MOTOR_CONTROLLER]
+    assert held[0].detail == "stopped: no telemetry from the motor controller for 0.6 s"
+    await clock.advance(CONFIG.navigation.blocked_give_up_s)
+    failed = [e.msg for e in iter(statuses.get_nowait, None) if e.msg.status.final]
+    assert [(u.status, u.problem) for u in failed] == [
+        (OrderStatus.FAILED, DeliveryProblem.MOTOR_CONTROLLER)
+    ]
+    await stop([motion])

@@ -49,6 +49,9 @@ async def test_collision_verdict_in_the_same_loop_turn_as_the_scan(caplog) -> No
     events = [(r.event, r.cause) for r in caplog.records if hasattr(r, "event")]
     assert [e for e, _ in events] == ["safety_clear", "safety_stop", "safety_clear"]
     assert "obstacle at 150 mm" in events[1][1]
+    # The states read as docs/operations.md shows them: stop and go.
+    changes = [(r.state, r.previous) for r in caplog.records if hasattr(r, "event")]
+    assert changes == [("go", "stop"), ("stop", "go"), ("go", "stop")]
 
 
 async def test_state_module_fuses_odometry_and_uwb() -> None:

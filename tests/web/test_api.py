@@ -24,7 +24,7 @@ from coffeebot.messages import (
 )
 from coffeebot.modules.orders import OrdersModule
 from coffeebot.orders import OrderNotFound, OrdersUnavailable
-from coffeebot.store import NewOrder, Order
+from coffeebot.store import NewOrder, Order, PlacedOrder
 from coffeebot.web import create_app
 
 from .conftest import TOKEN, web_deps
@@ -40,15 +40,20 @@ async def place(client: TestClient, **fields: Any) -> dict[str, Any]:
     return await response.json()
 
 
+def keyed(order: dict[str, Any], path: str = "/api/orders/{id}") -> str:
+    """``path`` for ``order`` with its key, as its customer's status link has it."""
+    return path.format(id=order["id"]) + f"?key={order['key']}"
+
+
 async def test_create_and_get_order(client: TestClient) -> None:
     response = await client.post("/api/orders", json=ORDER)
     assert response.status == 201
     order = await response.json()
-    assert response.headers["Location"] == f"/api/orders/{order['id']}"
+    assert response.headers["Location"] == keyed(order)
     assert order["status"] == "preparing"  # the robot was idle: dispatched at once
     second = await place(client, name="Grace")
     assert (second["status"], second["ahead"]) == ("queued", 1)
-    fetched = await client.get(f"/api/orders/{second['id']}")
+    fetched = await client.get(keyed(second))
     assert fetched.status == 200
     assert (await fetched.json())["name"] == "Grace"
 
@@ -106,12 +111,12 @@ async def test_unknown_order_is_404(client: TestClient) -> None:
 async def test_cancel_while_queued_else_409(client: TestClient) -> None:
     first = await place(client)
     second = await place(client, name="Grace")
-    response = await client.delete(f"/api/orders/{second['id']}")
+    response = await client.delete(keyed(second))
     assert response.status == 200
     assert (await response.json())["status"] == "cancelled"
-    again = await client.delete(f"/api/orders/{second['id']}")
+    again = await client.delete(keyed(second))
     assert again.status == 409
-    out = await client.delete(f"/api/orders/{first['id']}")
+    out = await client.delete(keyed(first))
     assert out.status == 409
     assert "preparing" in (await out.json())["error"]
 
@@ -178,15 +183,15 @@ async def test_estop_with_token(client: TestClient, board: Board) -> None:
 
 async def test_cup_loaded_and_pickup_follow_the_lifecycle(client: TestClient, board: Board) -> None:
     order = await place(client)
-    too_early = await client.post(f"/api/orders/{order['id']}/pickup")
+    too_early = await client.post(keyed(order, "/api/orders/{id}/pickup"))
     assert too_early.status == 409
     loaded = await client.post(f"/api/orders/{order['id']}/cup-loaded", headers=OPERATOR)
     assert loaded.status == 202
     assert board.latest(OPERATOR_EVENT).msg.kind == "cup_loaded"
     board.publish(DELIVERY_STATUS, DeliveryUpdate(order_id=order["id"], status=OrderStatus.ARRIVED))
-    async with client.get(f"/api/orders/{order['id']}/events") as stream:
+    async with client.get(keyed(order, "/api/orders/{id}/events")) as stream:
         await wait_for_status(stream, "arrived")
-    picked = await client.post(f"/api/orders/{order['id']}/pickup")
+    picked = await client.post(keyed(order, "/api/orders/{id}/pickup"))
     assert picked.status == 202
     event = board.latest(OPERATOR_EVENT).msg
     assert (event.kind, event.order_id) == ("pickup_confirmed", order["id"])
@@ -202,7 +207,7 @@ async def test_operator_confirms_the_elevator_only_while_the_robot_waits_for_it(
     assert (await client.post(path, headers=OPERATOR)).status == 409
     update = DeliveryUpdate(order_id=order["id"], status=OrderStatus.WAITING_FOR_ELEVATOR)
     board.publish(DELIVERY_STATUS, update)
-    async with client.get(f"/api/orders/{order['id']}/events") as stream:
+    async with client.get(keyed(order, "/api/orders/{id}/events")) as stream:
         await wait_for_status(stream, "waiting_for_elevator")
     assert (await client.post(path, headers=OPERATOR)).status == 202
     event = board.latest(OPERATOR_EVENT).msg
@@ -234,7 +239,7 @@ async def wait_for_status(stream: Any, status: str) -> dict[str, Any]:
 
 async def test_order_events_follow_the_lifecycle(client: TestClient, board: Board) -> None:
     order = await place(client)
-    async with client.get(f"/api/orders/{order['id']}/events") as stream:
+    async with client.get(keyed(order, "/api/orders/{id}/events")) as stream:
         assert stream.headers["Content-Type"] == "text/event-stream"
         await wait_for_status(stream, "preparing")
         for status in (OrderStatus.ON_THE_WAY, OrderStatus.ARRIVED, OrderStatus.DELIVERED):
@@ -245,13 +250,13 @@ async def test_order_events_follow_the_lifecycle(client: TestClient, board: Boar
 
 async def test_xss_in_name_and_notes_is_escaped(client: TestClient) -> None:
     order = await place(client, name=XSS[:40], notes=XSS)
-    page = await client.get(f"/orders/{order['id']}")
+    page = await client.get(keyed(order, "/orders/{id}"))
     html = await page.text()
     assert "<script>alert" not in html
     assert "<img src=x" not in html
     assert "&lt;script&gt;alert" in html
     assert "script-src 'self'" in page.headers["Content-Security-Policy"]
-    api = await client.get(f"/api/orders/{order['id']}")
+    api = await client.get(keyed(order))
     assert api.content_type == "application/json"
     assert (await api.json())["notes"] == XSS  # stored as given, escaped where shown
 
@@ -313,11 +318,14 @@ class QueueDown:
     """Orders kept somewhere that cannot be reached now (a fleet's dispatcher, restarting):
     the web needs nothing but the orders protocol."""
 
-    async def place(self, new: NewOrder, client: str) -> Order:
+    async def place(self, new: NewOrder, client: str) -> PlacedOrder:
         raise OrdersUnavailable("the dispatcher is restarting")
 
     async def get(self, order_id: str) -> Order:
         raise OrderNotFound(f"no order {order_id!r}")
+
+    async def authorize(self, order_id: str, key: str) -> Order:
+        return await self.get(order_id)
 
     async def cancel(self, order_id: str, detail: str = "") -> Order:
         raise OrderError(f"order {order_id!r} is out")

@@ -198,7 +198,7 @@ def test_several_floors_need_an_elevator(plan_dict: Callable[..., dict[str, Any]
 def test_file_errors_name_the_file(tmp_path: Path) -> None:
     bad = tmp_path / "broken.toml"
     bad.write_text("name = 'x'\n[[floors]\n")
-    with pytest.raises(FloorPlanError, match=r"broken\.toml: TOML syntax"):
+    with pytest.raises(FloorPlanError, match=r"broken\.toml: file: not valid TOML"):
         load_floorplan(bad)
     with pytest.raises(FloorPlanError, match=r"missing\.toml: file"):
         load_floorplan(tmp_path / "missing.toml")

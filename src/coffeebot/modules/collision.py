@@ -69,7 +69,7 @@ class CollisionModule(Module):
         # A restart forgets everything: back to "stop" until every face is clear again.
         self.monitor = self._new_monitor()
         # Starting in "stop" is the rule, not an event; every change after it is logged once.
-        safety = Transitions(ctx.log, initial={"collision": True})
+        safety = Transitions(ctx.log, initial={"collision": SafetyState.STOP.value})
         with ctx.board.subscribe(RANGE_SCAN) as scans:
             async for envelope in scans:
                 # No await between reading the scan and publishing the verdict.
@@ -81,7 +81,7 @@ class CollisionModule(Module):
                 stopped = status.state is SafetyState.STOP
                 safety.update(
                     "collision",
-                    stopped,
+                    SafetyState.STOP.value if stopped else SafetyState.GO.value,
                     Event.SAFETY_STOP if stopped else Event.SAFETY_CLEAR,
                     status.reason,
                     sensor=status.sensor,

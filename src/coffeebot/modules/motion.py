@@ -4,14 +4,15 @@ Each control period (and at once on every new collision verdict) it runs the
 :class:`~coffeebot.navigation.motion.MotionController` on the latest instruction and pose,
 then gates the result on the freshest safety state. The robot stops when any of these holds:
 no collision verdict yet, a verdict older than ``stale_safety_s``, a "stop" verdict, the
-e-stop engaged, the collision module reported failed (or stopped, or restarting), or no pose
-fresher than ``stale_pose_s``. A "slow" verdict caps the speed at its limit. A front "stop"
-that the verdict marks ``may_rotate`` (sides clear, nothing coming closer) still lets the
-robot turn on the spot, so a turn into a door or away from a box is not frozen half-way,
-and a turn is all it gets: the forward speed stays zero. On shutdown it
-sends a stop before anything is cancelled; if it crashes it sends a stop on the way out, the
-motor driver replaces a silent motion module's command by a stop, and the controller's own
-watchdog stops the wheels if everything above it is gone.
+e-stop engaged, the collision module reported failed (or stopped, or restarting), no pose
+fresher than ``stale_pose_s``, or no motor telemetry within ``[motor] telemetry_timeout_s``
+(a silent controller obeys nothing, and its wheels' state is unknown). A "slow" verdict
+caps the speed at its limit. A front "stop" that the verdict marks ``may_rotate`` (sides
+clear, nothing coming closer) still lets the robot turn on the spot, so a turn into a door or
+away from a box is not frozen half-way, and a turn is all it gets: the forward speed stays
+zero. On shutdown it sends a stop before anything is cancelled; if it crashes it sends a
+stop on the way out, the motor driver replaces a silent motion module's command by a stop,
+and the controller's own watchdog stops the wheels if everything above it is gone.
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ from coffeebot.messages import (
     MOTION_STATUS,
     MOTOR_COMMAND,
     MOVE_INSTRUCTION,
+    ODOMETRY,
     RANGE_SCAN,
     CollisionStatus,
     EStop,
@@ -103,7 +105,7 @@ def safety_gate(
 
 class MotionModule(Module):
     name = "motion"
-    inputs = (MOVE_INSTRUCTION, CURRENT_STATE, COLLISION, ESTOP, HEALTH, RANGE_SCAN)
+    inputs = (MOVE_INSTRUCTION, CURRENT_STATE, COLLISION, ESTOP, HEALTH, RANGE_SCAN, ODOMETRY)
     outputs = (MOTOR_COMMAND, MOTION_STATUS)
     shutdown_order = 0  # with the motor driver: first to stop
     critical = True
@@ -176,6 +178,13 @@ class MotionModule(Module):
             self.collision_health,
             self.cfg.stale_safety_s,
         )
+        if gate.cause is not StopCause.ESTOP:
+            telemetry_age = ctx.board.age(ODOMETRY)
+            if telemetry_age is None or telemetry_age > self.config.motor.telemetry_timeout_s:
+                since = "yet" if telemetry_age is None else f"for {telemetry_age:.1f} s"
+                return Gate(
+                    0.0, f"no telemetry from the motor controller {since}", StopCause.MOTOR_SILENT
+                )
         state, age = ctx.board.latest(CURRENT_STATE), ctx.board.age(CURRENT_STATE)
         if (not gate.stop or gate.may_rotate or gate.may_creep_ahead) and (
             state is None

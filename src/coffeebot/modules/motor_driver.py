@@ -3,24 +3,29 @@
 The current command is re-sent every ``keepalive_s`` to feed the controller's 200 ms
 watchdog; a command older than ``command_timeout_s`` is replaced by a stop, so a silent
 motion module stops the robot here as well as at the controller. On shutdown it sends a stop
-before the daemon cancels anything.
+before the daemon cancels anything, and logs whether it got out.
 
-Logged once each, with the cause: a lost port (``disconnect``) or a controller reset while
-running (``fault``) and the telemetry coming back (``reconnect``); a moving command going
-stale (``safety_stop``) and commands resuming (``safety_clear``).
+A controller that sends no telemetry for ``[motor] telemetry_timeout_s`` (hung firmware, a
+broken wire) is reported ``failed`` on the health topic; motion holds the robot on the same
+silence (it reads the telemetry's age), so navigation tells the order the true reason.
+
+Logged once each, with the cause: a lost port (``disconnect``), a controller reset while
+running or silent (``fault``) and the telemetry coming back (``reconnect``); a moving command
+going stale (``safety_stop``) and commands resuming (``safety_clear``).
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
 from dataclasses import dataclass
 
 from coffeebot.config import MotorConfig
 from coffeebot.hardware.motor import Boot, MotorController, parse
 from coffeebot.hardware.serial_port import SerialPort, open_port
 from coffeebot.hardware.worker import DeviceWorker
-from coffeebot.logs import Event, Transitions
+from coffeebot.logs import Event, Transitions, log_event
 from coffeebot.messages import (
     HEALTH,
     MOTOR_COMMAND,
@@ -32,7 +37,7 @@ from coffeebot.messages import (
 from coffeebot.modules.base import ModuleContext
 from coffeebot.modules.serial_device import LinkCounters, Opener, SerialDeviceModule
 
-RESET = "reset"
+RESET, SILENT = "reset", "silent"
 FRESH, STALE = "fresh", "stale"
 
 
@@ -43,6 +48,7 @@ class MotorCounters(LinkCounters):
     controller_boots: int = 0
     commands: int = 0
     stale_stops: int = 0
+    silences: int = 0
 
 
 class MotorDriver(SerialDeviceModule[MotorCounters]):
@@ -74,6 +80,10 @@ class MotorDriver(SerialDeviceModule[MotorCounters]):
         )
         self.keepalive_s = keepalive_s
         self.command_timeout_s = command_timeout_s
+        self.telemetry_timeout_s = motor.telemetry_timeout_s
+        self.watchdog_ms = motor.watchdog_ms
+        self._log = logging.getLogger(f"coffeebot.module.{self.name}")
+        """The daemon's logger for this module (``shutdown`` runs without a context)."""
         self._controller: MotorController | None = None
         self._writer: DeviceWorker | None = None
         self._commands: Transitions | None = None
@@ -115,8 +125,18 @@ class MotorDriver(SerialDeviceModule[MotorCounters]):
         self, ctx: ModuleContext, reader: DeviceWorker, ctrl: MotorController
     ) -> None:
         healthy = False
+        heard = ctx.clock.now()  # the port just opened: the first telemetry is due
+        silent_since: float | None = None
+        timeout_s = self.telemetry_timeout_s
         while True:
             line = await reader.call(ctrl.readline)
+            now = ctx.clock.now()
+            if silent_since is None and now - heard > timeout_s:
+                silent_since, healthy = heard, False
+                self.counters.silences += 1
+                cause = f"no telemetry from the motor controller for {timeout_s:g} s"
+                self.link(SILENT, Event.FAULT, cause)
+                self.health(ctx, HealthStatus.FAILED, f"{cause}; motion holds the robot")
             if line is None:
                 continue
             try:
@@ -126,10 +146,15 @@ class MotorDriver(SerialDeviceModule[MotorCounters]):
                 continue
             if isinstance(event, Odometry):
                 self.counters.telemetry += 1
+                heard = now
                 ctx.board.publish(ODOMETRY, event)
                 if not healthy:
                     healthy = True
-                    self.connected(ctx, "telemetry resumed", f"telemetry on {self.port}")
+                    cause = "telemetry resumed"
+                    if silent_since is not None:
+                        cause += f" after {now - silent_since:.1f} s of silence"
+                    silent_since = None
+                    self.connected(ctx, cause, f"telemetry on {self.port}")
             elif isinstance(event, Boot):
                 # Counters restarted at zero: consumers must not difference across this.
                 self.counters.controller_boots += 1
@@ -175,14 +200,22 @@ class MotorDriver(SerialDeviceModule[MotorCounters]):
                 await writer.call(ctrl.stop)
 
     async def shutdown(self) -> None:
-        """Send a stop now and only stops from here on; the controller's watchdog is the
-        fallback if this fails."""
+        """Send a stop now and only stops from here on, and say whether it got out; the
+        controller's watchdog is the fallback if it did not."""
         self._stopping = True
         ctrl, writer = self._controller, self._writer
+        fallback = f"the controller's {self.watchdog_ms} ms watchdog stops the motors"
         if ctrl is None or writer is None:
+            self._log.warning("shutdown: no motor controller connected to stop; %s", fallback)
             return
-        with contextlib.suppress(OSError):
+        try:
             await writer.call(ctrl.stop)
+        except OSError as exc:
+            log_event(
+                self._log, Event.FAULT, f"shutdown: the motor stop failed ({exc}); {fallback}"
+            )
+            return
+        log_event(self._log, Event.SAFETY_STOP, "shutdown: motors stopped", port=self.port)
 
 
 def _moving(command: MotorCommand) -> bool:

@@ -42,6 +42,7 @@ from coffeebot.messages import (
     OperatorEvent,
     OrderDispatch,
     PoseEstimate,
+    StopCause,
 )
 from coffeebot.modules.base import Module, ModuleContext
 from coffeebot.navigation.lifecycle import DeliveryLifecycle
@@ -160,19 +161,22 @@ class NavigationModule(Module):
                 nearest, progressed = status.remaining_mm, heard
             held = status.since_s if status.state in NOT_MOVING else 0.0
             stalled = heard - progressed
+            # Held: motion says why. Moving without getting nearer: that is the news.
             why = status.detail
-            if stalled > held:
+            if status.state not in NOT_MOVING and stalled > held:
                 why = f"no progress for {stalled:.0f} s ({status.detail})"
             stuck_s = max(held, stalled)
+            # A silent motor controller is a fault of the robot, not the way: told at once.
+            motors = status.stopped_by is StopCause.MOTOR_SILENT
+            problem = DeliveryProblem.MOTOR_CONTROLLER if motors else DeliveryProblem.BLOCKED
+            held_as = "stopped" if motors else "blocked"
             if stuck_s >= self.nav.blocked_give_up_s:
-                raise DeliveryAborted(
-                    f"blocked for {stuck_s:.0f} s: {why}", DeliveryProblem.BLOCKED
-                )
-            stuck = stuck_s >= self.nav.blocked_report_s
+                raise DeliveryAborted(f"{held_as} for {stuck_s:.0f} s: {why}", problem)
+            stuck = motors or stuck_s >= self.nav.blocked_report_s
             if stuck and not reported_blocked:
                 reported_blocked = True
-                self._progress(ctx, f"blocked: {why}", DeliveryProblem.BLOCKED)
-                if self.nav.on_blocked == "return":
+                self._progress(ctx, f"{held_as}: {why}", problem)
+                if self.nav.on_blocked == "return" and not motors:
                     raise DeliveryAborted(f"blocked: {why}", DeliveryProblem.BLOCKED)
             elif not stuck and reported_blocked:
                 reported_blocked = False

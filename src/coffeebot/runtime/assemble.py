@@ -11,7 +11,6 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 
 from coffeebot.board import Board
 from coffeebot.clock import Clock
@@ -98,7 +97,7 @@ def assemble(
     *,
     clock: Clock,
     open_i2c: Callable[[], I2CBus],
-    store_path: Path,
+    store: OrderStore,
     kernel_hz: Callable[[], int | None] | None = None,
     start: PoseEstimate | None = None,
     before: Sequence[Module] = (),
@@ -109,14 +108,15 @@ def assemble(
 ) -> Runtime:
     """Build the board and every module from ``config`` and ``plan``.
 
-    ``kernel_hz``: the I2C bus clock the kernel runs, for the self-check (a real bus only);
+    ``store``: the order database (the caller opens it: on the robot the board file's path,
+    in simulation a temporary one); ``kernel_hz``: the I2C bus clock the kernel runs, for the
+    self-check (a real bus only);
     ``before``: modules that start ahead of the drivers (the simulated world);
     ``elevator``: the building's elevator, if the robot can talk to it; ``true_pose``: a pose
     the live map draws beside the estimate (the simulator's truth); ``web``: serve the UI.
     """
     board = Board(ALL_TOPICS, clock=clock)
-    store = OrderStore(store_path)
-    orders = OrdersModule(store)
+    orders = OrdersModule(store, config.store)
     modules: list[Module] = [*before]
     modules += robot_modules(config, plan, open_i2c, start)
     modules += navigation_modules(config, plan, elevator)

@@ -5,7 +5,6 @@ world behind a simulated I2C bus and two pty devices) under the very same module
 from __future__ import annotations
 
 import contextlib
-import tempfile
 from collections.abc import AsyncIterator, Callable, Sequence
 from pathlib import Path
 
@@ -15,7 +14,9 @@ from coffeebot.floorplan import FloorPlan
 from coffeebot.messages import PoseEstimate
 from coffeebot.modules.base import Module
 from coffeebot.runtime.assemble import Runtime, assemble
+from coffeebot.sim.rundir import run_directory
 from coffeebot.sim.simulation import SimElevatorLink, SimSetup, Simulation, WorldModule
+from coffeebot.sim.store import SimStore
 from coffeebot.sim.world import RobotSpec, World
 from coffeebot.sim.world.elevator import SimElevator
 from coffeebot.web.livemap import MapPose
@@ -43,7 +44,7 @@ async def build_sim(
 ) -> AsyncIterator[tuple[Runtime, Simulation]]:
     """The daemon on the simulated robot, and its simulation; the devices run while the
     context is open and the order store lives in a temporary directory (each run starts with
-    an empty queue)."""
+    an empty queue; one a killed run left behind goes at the next start)."""
     clock: Clock = MonotonicClock() if setup.wall_clock else SteppedClock(setup.speed)
     world = World(
         plan,
@@ -54,7 +55,6 @@ async def build_sim(
         seed=setup.seed,
         elevator=SimElevator(plan, car_floor=setup.floor),
     )
-    sim = Simulation(world, config, clock, setup.faults, speed=setup.speed)
     start = PoseEstimate(
         x_mm=setup.pose.x_mm,
         y_mm=setup.pose.y_mm,
@@ -64,7 +64,9 @@ async def build_sim(
         sigma_y_mm=50.0,
         sigma_heading_deg=5.0,
     )
-    with tempfile.TemporaryDirectory(prefix="coffeebot-sim-") as tmp:
+    with run_directory() as tmp:
+        store = SimStore(Path(tmp) / "orders.sqlite3", busy_timeout_s=config.store.busy_timeout_s)
+        sim = Simulation(world, config, clock, setup.faults, speed=setup.speed, store=store)
         sim.start()
         try:
             yield (
@@ -73,7 +75,7 @@ async def build_sim(
                     plan,
                     clock=clock,
                     open_i2c=lambda: sim.tof.bus,
-                    store_path=Path(tmp) / "orders.sqlite3",
+                    store=store,
                     start=start,
                     before=[WorldModule(sim)],
                     elevator=SimElevatorLink(sim),
@@ -85,3 +87,4 @@ async def build_sim(
             )
         finally:
             sim.close()
+            store.close()

@@ -11,32 +11,34 @@ from pathlib import Path
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from coffeebot.config import RobotConfig, describe_validation_error, read_toml
+from coffeebot.config import SPEED_MM_S, WAIT_S, RobotConfig, describe_validation_error, read_toml
 from coffeebot.errors import ConfigError
-from coffeebot.floorplan import FloorPlan, load_floorplan
+from coffeebot.floorplan import Coordinate, FloorPlan, load_floorplan
 from coffeebot.sim.faults import Fault
 from coffeebot.sim.simulation import SimSetup
 from coffeebot.sim.world import ObstacleSpec, Pose
 
 
 class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    """Unknown keys, ``nan`` and ``inf`` are refused, as in the board file."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 class StartPose(_Model):
     """Where the robot stands when the run begins (floor frame)."""
 
     floor: int
-    x_mm: float
-    y_mm: float
-    heading_deg: float = 0.0
+    x_mm: Coordinate
+    y_mm: Coordinate
+    heading_deg: float = Field(0.0, ge=-360, le=360)
 
 
 class OrderSpec(_Model):
     """A customer placing an order ``at_s`` simulated seconds into the run."""
 
     room: str
-    at_s: float = Field(0.0, ge=0)
+    at_s: float = Field(0.0, ge=0, le=WAIT_S)
     drink: str = "espresso"
     name: str = "scenario"
 
@@ -44,18 +46,20 @@ class OrderSpec(_Model):
 class Limits(_Model):
     """Speed limits for the run; unset keeps the board file's values."""
 
-    max_speed_mm_s: float | None = Field(None, gt=0, description="the motors' limit")
-    cruise_speed_mm_s: float | None = Field(None, gt=0, description="navigation's cruise")
+    max_speed_mm_s: float | None = Field(None, gt=0, le=SPEED_MM_S, description="the motors' limit")
+    cruise_speed_mm_s: float | None = Field(
+        None, gt=0, le=SPEED_MM_S, description="navigation's cruise"
+    )
 
 
 class Staff(_Model):
     """The people around a delivery: staff loading the cup, the customer taking it."""
 
     load_after_s: float = Field(
-        3.0, ge=0, description="after the robot stands ready in the tea room for the cup"
+        3.0, ge=0, le=WAIT_S, description="after the robot stands ready in the tea room for the cup"
     )
     pickup_after_s: float | None = Field(
-        5.0, ge=0, description="after the robot arrived; unset: nobody comes"
+        5.0, ge=0, le=WAIT_S, description="after the robot arrived; unset: nobody comes"
     )
 
 
@@ -64,7 +68,9 @@ class Scenario(_Model):
     description: str = ""
     floorplan: Path = Field(description="relative to the scenario file")
     seed: int = 0
-    time_limit_s: float = Field(gt=0, description="simulated seconds before the run ends")
+    time_limit_s: float = Field(
+        gt=0, le=WAIT_S, description="simulated seconds before the run ends"
+    )
     start: StartPose
     orders: list[OrderSpec] = []
     obstacles: list[ObstacleSpec] = []

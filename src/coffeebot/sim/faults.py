@@ -1,8 +1,9 @@
 """Faults a scenario injects into the simulated devices, each over a window of simulated time.
 
 Each fault drives the fault hooks the simulated chips already have (a NACKing sensor, an
-unplugged or babbling UWB tag, a hung motor controller), so the daemon meets them through
-its real drivers, exactly as it would on the robot.
+unplugged or babbling UWB tag, a hung motor controller, an elevator that does not answer) or
+the order database's (:mod:`coffeebot.sim.store`: locked, read only, full), so the daemon
+meets them through its real drivers and its real store, exactly as it would on the robot.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, model_validator
 
 if TYPE_CHECKING:
     from coffeebot.sim.simulation import Simulation
+    from coffeebot.sim.store import SimStore
 
 GARBAGE_PERIOD_S = 0.1
 
@@ -31,11 +33,11 @@ class FaultRecord:
 
 
 class _Fault(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
     kind: str
     from_s: float = Field(ge=0, description="simulated time the fault starts")
-    to_s: float | None = Field(None, description="when it ends; leave out for the whole run")
+    to_s: float | None = Field(None, ge=0, description="when it ends; leave out for the whole run")
 
     @model_validator(mode="after")
     def _ordered(self) -> _Fault:
@@ -145,4 +147,88 @@ class MotorSilent(_Fault):
         sim.motor.silent = False
 
 
-Fault = Annotated[SensorNack | UwbGarbage | UwbUnplug | MotorSilent, Field(discriminator="kind")]
+class ElevatorSilent(_Fault):
+    """The elevator interface ignores every request (its controller is down)."""
+
+    kind: Literal["elevator_silent"]
+
+    def describe(self) -> str:
+        return "elevator does not answer"
+
+    def begin(self, sim: Simulation) -> None:
+        if sim.world.elevator is not None:
+            sim.world.elevator.answering = False
+
+    def end(self, sim: Simulation) -> None:
+        if sim.world.elevator is not None:
+            sim.world.elevator.answering = True
+
+
+def _store(sim: Simulation) -> SimStore:
+    if sim.store is None:
+        raise RuntimeError("a store fault needs a simulation with an order store")
+    return sim.store
+
+
+class StoreLocked(_Fault):
+    """Another process holds the order database's write lock (a backup, a shell left open)."""
+
+    kind: Literal["store_locked"]
+    _held: bool = PrivateAttr(False)
+
+    def describe(self) -> str:
+        return "order database locked by another process"
+
+    def begin(self, sim: Simulation) -> None:
+        self._held = _store(sim).lock()
+
+    def during(self, sim: Simulation) -> None:
+        if not self._held:  # the store was writing at the first attempt
+            self._held = _store(sim).lock()
+
+    def end(self, sim: Simulation) -> None:
+        _store(sim).unlock()
+        self._held = False
+
+
+class StoreReadOnly(_Fault):
+    """The file system holding the order database turned read only."""
+
+    kind: Literal["store_read_only"]
+
+    def describe(self) -> str:
+        return "order database read only"
+
+    def begin(self, sim: Simulation) -> None:
+        _store(sim).set_read_only(True)
+
+    def end(self, sim: Simulation) -> None:
+        _store(sim).set_read_only(False)
+
+
+class StoreFull(_Fault):
+    """The disk holding the order database is full."""
+
+    kind: Literal["store_full"]
+
+    def describe(self) -> str:
+        return "order database disk full"
+
+    def begin(self, sim: Simulation) -> None:
+        _store(sim).full = True
+
+    def end(self, sim: Simulation) -> None:
+        _store(sim).full = False
+
+
+Fault = Annotated[
+    SensorNack
+    | UwbGarbage
+    | UwbUnplug
+    | MotorSilent
+    | ElevatorSilent
+    | StoreLocked
+    | StoreReadOnly
+    | StoreFull,
+    Field(discriminator="kind"),
+]

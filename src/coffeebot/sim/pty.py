@@ -10,13 +10,14 @@ from __future__ import annotations
 import contextlib
 import os
 import select
-import tempfile
 import threading
 import time
 import tty
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from pathlib import Path
+
+from coffeebot.sim.rundir import run_directory
 
 
 class PtyDevice(ABC):
@@ -33,7 +34,7 @@ class PtyDevice(ABC):
     ) -> None:
         self.clock = clock
         self.tick_s = tick_s
-        self._dir = tempfile.TemporaryDirectory(prefix="coffeebot-sim-")
+        self._dir = run_directory()
         self.port = str(Path(self._dir.name) / name)
         self._lock = threading.RLock()  # also guards subclass state
         self._master: int | None = None

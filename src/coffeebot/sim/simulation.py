@@ -33,6 +33,7 @@ from coffeebot.sim.dwm1001 import SimDwm1001
 from coffeebot.sim.faults import Fault, FaultRecord
 from coffeebot.sim.i2c import make_tof_hardware
 from coffeebot.sim.motor_controller import DriveSample, SimMotorController
+from coffeebot.sim.store import SimStore
 from coffeebot.sim.world import ObstacleSpec, Pose, World
 from coffeebot.sim.world.tof import Returns
 
@@ -99,8 +100,11 @@ class Simulation:
         clock: Clock,
         faults: Sequence[Fault] = (),
         speed: float = 1.0,
+        store: SimStore | None = None,
     ) -> None:
         self.world = world
+        self.store = store
+        """The order database the store faults act on (None: a run without one)."""
         self.clock = clock
         self.lock = threading.RLock()
         self.faults = [fault.model_copy() for fault in faults]  # each run starts afresh

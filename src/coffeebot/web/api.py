@@ -1,9 +1,14 @@
-"""The JSON API: orders, the board, operator actions. Thin handlers over the orders protocol."""
+"""The JSON API: orders, the board, operator actions. Thin handlers over the orders protocol.
+
+A customer acts on an order with its key (``?key=``, from the status link the order was
+answered with); an operator, with the operator token, on any order. A request body must be
+JSON and say so (``Content-Type: application/json``).
+"""
 
 from __future__ import annotations
 
 from aiohttp import web
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, StrictBool, ValidationError
 
 from coffeebot.errors import OrderError
 from coffeebot.messages import (
@@ -13,7 +18,8 @@ from coffeebot.messages import (
     OperatorEvent,
     OrderStatus,
 )
-from coffeebot.store import NewOrder, Order, OrderRules
+from coffeebot.orders import OrdersUnavailable
+from coffeebot.store import NewOrder, Order, OrderRules, PlacedOrder
 from coffeebot.web.context import (
     BUS,
     CHANGES,
@@ -39,7 +45,8 @@ ORDER_ID = "{order_id:[A-Za-z0-9_-]{1,32}}"
 class EStopRequest(BaseModel):
     model_config = ConfigDict(extra="forbid", str_strip_whitespace=True)
 
-    engaged: bool
+    engaged: StrictBool
+    """JSON ``true`` or ``false`` only: "yes", 1 or "on" are no answer to "stop the robot?"."""
     reason: str = Field("", max_length=200)
 
 
@@ -62,6 +69,31 @@ def order_json(order: Order, status: int = 200) -> web.Response:
     return web.json_response(text=order.model_dump_json(), status=status)
 
 
+def status_link(order: PlacedOrder) -> str:
+    """The customer's status page: the one link that lets its holder act on the order."""
+    return f"/orders/{order.id}?key={order.key}"
+
+
+async def order_for(request: web.Request) -> Order:
+    """The order named in the path, for its customer (the ``key`` query parameter) or an
+    operator (the token); ``WrongOrderKey`` for anyone else."""
+    orders = request.app[DEPS].orders
+    order_id = request.match_info["order_id"]
+    if is_operator(request):
+        return await orders.get(order_id)
+    return await orders.authorize(order_id, request.query.get("key", ""))
+
+
+async def json_body(request: web.Request) -> bytes:
+    """The request body, refused with 415 unless it is declared as JSON."""
+    if request.content_type != "application/json":
+        raise web.HTTPUnsupportedMediaType(
+            text=f"the body must be JSON (Content-Type: application/json), not "
+            f"{request.content_type!r}"
+        )
+    return await request.read()
+
+
 def operator_only(request: web.Request) -> None:
     if not is_operator(request):
         raise web.HTTPUnauthorized(
@@ -72,15 +104,16 @@ def operator_only(request: web.Request) -> None:
 
 @routes.post("/api/orders")
 async def create_order(request: web.Request) -> web.Response:
+    body = await json_body(request)
     check_rate(request)
-    body = await request.read()
     try:
         new = NewOrder.model_validate_json(body, context=order_rules(request))
     except ValidationError as exc:
         return validation_error(exc, "order")
     order = await request.app[DEPS].orders.place(new, client_key(request))
     response = order_json(order, status=201)
-    response.headers["Location"] = f"/api/orders/{order.id}"
+    response.headers["Location"] = f"/api/orders/{order.id}?key={order.key}"
+    response.headers["Link"] = f'<{status_link(order)}>; rel="alternate"; type="text/html"'
     return response
 
 
@@ -94,15 +127,15 @@ async def list_orders(request: web.Request) -> web.Response:
 
 @routes.get(f"/api/orders/{ORDER_ID}")
 async def get_order(request: web.Request) -> web.Response:
-    return order_json(await request.app[DEPS].orders.get(request.match_info["order_id"]))
+    return order_json(await order_for(request))
 
 
 @routes.delete(f"/api/orders/{ORDER_ID}")
 async def cancel_order(request: web.Request) -> web.Response:
     """Customers cancel while queued; an operator may also cancel an order that is out."""
     orders = request.app[DEPS].orders
-    order_id = request.match_info["order_id"]
-    order = await orders.get(order_id)
+    order = await order_for(request)
+    order_id = order.id
     if order.status is OrderStatus.QUEUED or not is_operator(request):
         return order_json(await orders.cancel(order_id))
     if order.status.final:
@@ -119,7 +152,7 @@ def publish_event(request: web.Request, kind: str, order_id: str) -> None:
 
 
 async def _event_if(request: web.Request, kind: str, required: OrderStatus) -> web.Response:
-    order = await request.app[DEPS].orders.get(request.match_info["order_id"])
+    order = await order_for(request)
     if order.status is not required:
         raise OrderError(f"order {order.id!r} is {order.status.value}, not {required.value}")
     publish_event(request, kind, order.id)
@@ -149,11 +182,11 @@ async def elevator_confirm(request: web.Request) -> web.Response:
 
 @routes.get(f"/api/orders/{ORDER_ID}/events")
 async def order_events(request: web.Request) -> web.StreamResponse:
-    """The order as JSON each time it (or its place in the queue) changes; ends when it ends."""
+    """The order as JSON each time it (or its place in the queue) changes; ends when it ends.
+    While the orders cannot be read the stream stays open on heartbeats."""
     orders = request.app[DEPS].orders
     changes = request.app[CHANGES]
-    order_id = request.match_info["order_id"]
-    last = await orders.get(order_id)
+    last = await order_for(request)
     response = await open_event_stream(request)
     payload: str | None = last.model_dump_json()
     while not changes.closed.is_set() and await send_event(response, payload):
@@ -161,7 +194,11 @@ async def order_events(request: web.Request) -> web.StreamResponse:
             break
         seen = changes.version
         await changes.wait(seen, HEARTBEAT_S)
-        order = await orders.get(order_id)
+        try:
+            order = await orders.get(last.id)
+        except OrdersUnavailable:
+            payload = None
+            continue
         payload = None if order == last else order.model_dump_json()
         last = order
     return response
@@ -190,8 +227,9 @@ async def board_stream(request: web.Request) -> web.StreamResponse:
 async def estop(request: web.Request) -> web.Response:
     """Engage or release the emergency stop (motion refuses to move while it is engaged)."""
     operator_only(request)
+    body = await json_body(request)
     try:
-        wanted = EStopRequest.model_validate_json(await request.read())
+        wanted = EStopRequest.model_validate_json(body)
     except ValidationError as exc:
         return validation_error(exc, "e-stop request")
     msg = EStop(engaged=wanted.engaged, source="web operator", reason=wanted.reason)

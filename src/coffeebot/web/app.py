@@ -1,9 +1,11 @@
 """The aiohttp application: ``create_app(deps, bus)`` is the only way it is built.
 
 Routes live in :mod:`coffeebot.web.api` (JSON) and :mod:`coffeebot.web.pages` (HTML); this
-module adds what applies to all of them: the body size limit, the orders' errors mapped to
-HTTP answers (here and nowhere else), errors as JSON under ``/api`` and as a page elsewhere,
-security headers, and the background task that follows the board.
+module adds what applies to all of them: the body size limit, the Host and cross-site checks
+and the headers of :mod:`coffeebot.web.guard`, the orders' errors mapped to HTTP answers
+(here and nowhere else), errors as JSON under ``/api`` and as a page elsewhere (an
+unexpected one too: logged once with its traceback, answered 500 without it), and the
+background task that follows the board.
 """
 
 from __future__ import annotations
@@ -17,7 +19,8 @@ from pathlib import Path
 from aiohttp import web
 
 from coffeebot.errors import OrderError
-from coffeebot.orders import OrderNotFound, OrdersUnavailable
+from coffeebot.logs import Event
+from coffeebot.orders import OrderNotFound, OrdersUnavailable, WrongOrderKey
 from coffeebot.web import api, pages
 from coffeebot.web.context import (
     BUS,
@@ -30,26 +33,25 @@ from coffeebot.web.context import (
     error,
 )
 from coffeebot.web.deps import BoardIO, WebDeps
+from coffeebot.web.guard import AllowedHosts, add_headers, refusal
 from coffeebot.web.live import Changes, FrameCache
 
 log = logging.getLogger(__name__)
 
 STATIC = Path(__file__).parent / "static"
 
-SECURITY_HEADERS = {
-    # No inline script anywhere, so injected markup could not run even if it got through.
-    "Content-Security-Policy": (
-        "default-src 'self'; script-src 'self'; style-src 'self' 'unsafe-inline'; "
-        "img-src 'self' data:; object-src 'none'; base-uri 'none'; frame-ancestors 'none'"
-    ),
-    "X-Content-Type-Options": "nosniff",
-    # An order's id in its URL is what lets its holder cancel it: never send it elsewhere.
-    "Referrer-Policy": "no-referrer",
-}
+ALLOWED_HOSTS = web.AppKey("allowed_hosts", AllowedHosts)
+
+RETRY_AFTER_S = 5
+"""What a client is told to wait when the orders are unavailable."""
 
 Handler = Callable[[web.Request], Awaitable[web.StreamResponse]]
 
-ORDER_ERROR_STATUS: dict[type[OrderError], int] = {OrderNotFound: 404, OrdersUnavailable: 503}
+ORDER_ERROR_STATUS: dict[type[OrderError], int] = {
+    OrderNotFound: 404,
+    WrongOrderKey: 403,
+    OrdersUnavailable: 503,
+}
 """The HTTP answer to each kind of order error; any other is a conflict with the order's
 state (409)."""
 
@@ -67,11 +69,18 @@ def _error_response(request: web.Request, status: int, message: str) -> web.Resp
 
 
 @web.middleware
-async def errors_and_headers(request: web.Request, handler: Handler) -> web.StreamResponse:
+async def guard_and_errors(request: web.Request, handler: Handler) -> web.StreamResponse:
+    refused = refusal(request, request.app[ALLOWED_HOSTS])
+    if refused is not None:
+        return _error_response(request, *refused)
     try:
-        response = await handler(request)
+        return await handler(request)
     except OrderError as exc:
-        response = _error_response(request, order_error_status(exc), str(exc))
+        status = order_error_status(exc)
+        response = _error_response(request, status, str(exc))
+        if status == 503:
+            response.headers["Retry-After"] = str(RETRY_AFTER_S)
+        return response
     except web.HTTPException as exc:
         if exc.status < 400:
             raise
@@ -79,9 +88,17 @@ async def errors_and_headers(request: web.Request, handler: Handler) -> web.Stre
         response.headers.update(
             {k: v for k, v in exc.headers.items() if k in ("Retry-After", "WWW-Authenticate")}
         )
-    if not response.prepared:
-        response.headers.update(SECURITY_HEADERS)
-    return response
+        return response
+    except (asyncio.CancelledError, ConnectionResetError):
+        raise  # the client went away: nothing to answer
+    except Exception as exc:
+        log.exception(
+            "web request %s %s failed",
+            request.method,
+            request.path,
+            extra={"event": Event.FAULT.value, "cause": f"{type(exc).__name__}: {exc}"},
+        )
+        return _error_response(request, 500, "internal error; the operator's log has the details")
 
 
 def create_app(deps: WebDeps, bus: BoardIO) -> web.Application:
@@ -89,9 +106,10 @@ def create_app(deps: WebDeps, bus: BoardIO) -> web.Application:
     daemon, the web module's restricted board view); serve it with ``web.AppRunner`` or
     aiohttp's test client."""
     app = web.Application(
-        middlewares=[errors_and_headers], client_max_size=deps.config.max_body_bytes
+        middlewares=[guard_and_errors], client_max_size=deps.config.max_body_bytes
     )
     app[DEPS] = deps
+    app[ALLOWED_HOSTS] = AllowedHosts(deps.config.allowed_hosts)
     app[BUS] = bus
     app[CHANGES] = Changes()
     app[FRAMES] = FrameCache(deps, max_age_s=deps.config.stream_period_s / 2)
@@ -102,6 +120,7 @@ def create_app(deps: WebDeps, bus: BoardIO) -> web.Application:
     app.add_routes(api.routes)
     app.add_routes(pages.routes)
     app.router.add_static("/static", STATIC)
+    app.on_response_prepare.append(add_headers)
     app.cleanup_ctx.append(_follow_board)
     app.on_shutdown.append(_end_streams)
     return app

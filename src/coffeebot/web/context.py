@@ -58,13 +58,16 @@ def client_key(request: web.Request) -> str:
 
 
 def is_operator(request: web.Request) -> bool:
-    """A bearer token equal to the configured one, compared in constant time."""
+    """A bearer token equal to the configured one, compared in constant time. A header that
+    is not UTF-8 (the bytes aiohttp could not decode) is simply a wrong token."""
     expected = request.app[DEPS].operator_token
     header = request.headers.get("Authorization", "")
     scheme, _, given = header.partition(" ")
     if not expected or scheme.lower() != "bearer":
         return False
-    return hmac.compare_digest(given.strip().encode(), expected.encode())
+    return hmac.compare_digest(
+        given.strip().encode("utf-8", "surrogateescape"), expected.encode("utf-8")
+    )
 
 
 def error(status: int, message: str, **extra: Any) -> web.Response:

@@ -18,7 +18,7 @@ from pydantic import ValidationError
 
 from coffeebot.messages import OrderStatus
 from coffeebot.store import NewOrder
-from coffeebot.web.api import ORDER_ID, check_rate, order_rules
+from coffeebot.web.api import ORDER_ID, check_rate, order_for, order_rules, status_link
 from coffeebot.web.context import DEPS, TEMPLATES, client_key, field_errors
 from coffeebot.web.graph import module_graph
 
@@ -86,13 +86,14 @@ async def submit_order(request: web.Request) -> web.StreamResponse:
     except ValidationError as exc:
         return order_form(request, values=form, errors=field_errors(exc), status=422)
     order = await request.app[DEPS].orders.place(new, client_key(request))
-    raise web.HTTPSeeOther(f"/orders/{order.id}")
+    raise web.HTTPSeeOther(status_link(order))
 
 
 @routes.get(f"/orders/{ORDER_ID}")
 async def order_page(request: web.Request) -> web.Response:
-    order = await request.app[DEPS].orders.get(request.match_info["order_id"])
-    return render(request, "order.html", order=order)
+    """The customer's status page, reached by the link with the order's key."""
+    order = await order_for(request)
+    return render(request, "order.html", order=order, key=request.query.get("key", ""))
 
 
 @routes.get("/inspect")

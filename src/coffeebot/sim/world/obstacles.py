@@ -114,7 +114,7 @@ SHAPES: dict[str, tuple[Box | Pole, ...]] = {
 class ObstacleSpec(BaseModel):
     """An obstacle placed on a floor, optionally moving along a path at a constant speed."""
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
     id: str
     kind: ObstacleKind

@@ -3,6 +3,8 @@
 (function () {
   const box = document.getElementById("order");
   const id = box.dataset.orderId;
+  // The order's key authorizes this page's requests; it came in the page's own address.
+  const key = `key=${encodeURIComponent(box.dataset.orderKey)}`;
   const statusText = JSON.parse(document.getElementById("status-text-data").textContent);
   const el = (name) => document.getElementById(name);
   const finalStates = ["delivered", "cancelled", "failed"];
@@ -22,7 +24,7 @@
     el("cancel").hidden = order.status !== "queued";
   }
 
-  const events = new EventSource(`/api/orders/${encodeURIComponent(id)}/events`);
+  const events = new EventSource(`/api/orders/${encodeURIComponent(id)}/events?${key}`);
   events.onopen = () => { el("live").textContent = "live"; };
   events.onerror = () => { el("live").textContent = "reconnecting…"; };
   events.onmessage = (event) => {
@@ -41,6 +43,6 @@
     if (!response.ok) el("action-error").textContent = body.error;
     else show(body);
   }
-  el("cancel").addEventListener("click", () => act("DELETE", `/api/orders/${encodeURIComponent(id)}`));
-  el("pickup").addEventListener("click", () => act("POST", `/api/orders/${encodeURIComponent(id)}/pickup`));
+  el("cancel").addEventListener("click", () => act("DELETE", `/api/orders/${encodeURIComponent(id)}?${key}`));
+  el("pickup").addEventListener("click", () => act("POST", `/api/orders/${encodeURIComponent(id)}/pickup?${key}`));
 })();
