@@ -8,7 +8,7 @@ from perception_helpers import robot
 
 from coffeebot.config import TofSensorConfig
 from coffeebot.messages import RangeReading, RangeScan, ReadingStatus, SafetyState
-from coffeebot.perception.collision import CollisionMonitor
+from coffeebot.perception.collision import CollisionMonitor, stop_distance_mm
 from coffeebot.perception.tracking import ReturnTracker
 
 DT = 0.02
@@ -149,3 +149,28 @@ def test_someone_who_went_out_of_view_beside_the_path_is_passed_slowly() -> None
     assert all(v.state is SafetyState.SLOW for v in careful)
     assert all(v.speed_limit_mm_s == tracking.lost_speed_mm_s for v in careful)
     assert verdicts[-1][2].state is SafetyState.GO
+
+
+def test_someone_walking_towards_the_robot_has_it_standing_before_they_meet() -> None:
+    """They keep coming while it brakes: the robot slows from far off, as the verdicts say
+    (braking at the rate it relies on), and stands before they reach it."""
+    cfg = CONFIG.collision
+    monitor = CollisionMonitor(TOED_OUT, cfg, max_speed_mm_s=1000, tracking=CONFIG.tracking)
+    speed, walk, gap = 500.0, 1200.0, 3000.0
+    reasons, first_slowed_at = [], None
+    for k in range(1, 200):
+        t = k * DT
+        status = monitor.update(scan_of([(305.0 + gap, 0.0)], t), speed, k)
+        reasons.append(status.reason)
+        if first_slowed_at is None and status.state is not SafetyState.GO:
+            first_slowed_at = gap
+        limit = 0.0 if status.state is SafetyState.STOP else status.speed_limit_mm_s
+        speed = max(min(speed, limit), speed - cfg.braking_mm_s2 * DT)
+        gap -= (speed + walk) * DT
+        if speed == 0.0:
+            break
+    assert speed == 0.0 and gap > 0, f"still at {speed:.0f} mm/s {gap:.0f} mm from them"
+    assert any("coming towards" in reason for reason in reasons)
+    stopping_s = cfg.reaction_latency_s + 500.0 / cfg.braking_mm_s2
+    assert first_slowed_at is not None
+    assert first_slowed_at > stop_distance_mm(cfg, 500.0) + walk * stopping_s

@@ -141,13 +141,16 @@ def stop_distance_mm(cfg: CollisionConfig, speed_mm_s: float) -> float:
     return max(cfg.front_radius_mm, kinematic)
 
 
-def safe_speed_mm_s(cfg: CollisionConfig, room_mm: float) -> float:
-    """The highest speed that can still be braked to zero within ``room_mm``."""
-    if room_mm <= 0:
+def safe_speed_mm_s(cfg: CollisionConfig, room_mm: float, closing_mm_s: float = 0.0) -> float:
+    """The highest speed that can still be braked to zero within ``room_mm``, while what is
+    ahead comes closer at ``closing_mm_s`` until the robot stands (it covers part of the
+    room): ``v t + v^2 / 2a + c (t + v / a) <= room``."""
+    a, t, c = cfg.braking_mm_s2, cfg.reaction_latency_s, max(0.0, closing_mm_s)
+    room = room_mm - c * t
+    if room <= 0:
         return 0.0
-    room = room_mm
-    a, t = cfg.braking_mm_s2, cfg.reaction_latency_s
-    return a * (-t + math.sqrt(t * t + 2.0 * room / a))
+    reach = t + c / a
+    return a * (-reach + math.sqrt(reach * reach + 2.0 * room / a))
 
 
 class CollisionMonitor:
@@ -426,6 +429,33 @@ class CollisionMonitor:
             SafetyState.SLOW, front, None, f"{what}, slowing", limit, found.ahead_mm, True
         )
 
+    def _oncoming(self) -> _Finding | None:
+        """A mover in the corridor ahead walking towards the robot: it keeps coming while the
+        robot brakes, so the robot slows to a speed it can stop from before they meet, and
+        stands once it cannot; someone who then walks into it has walked into a standing
+        robot."""
+        cfg = self.cfg
+        worst: tuple[float, float, float] | None = None  # (limit, gap, closing)
+        margin = self.tracker.cfg.corridor_margin_mm
+        for track in self.tracker.movers():
+            x, y = self.tracker.odometry.to_local(track.state[0], track.state[1])
+            vx, _ = self.tracker.odometry.rotate_to_local(track.state[2], track.state[3])
+            closing = -vx
+            if abs(y) > self.half_width_mm + margin or x < self.front_mm or closing <= 0:
+                continue
+            gap = x - self.front_mm
+            limit = safe_speed_mm_s(cfg, gap - cfg.margin_mm - cfg.hysteresis_mm, closing)
+            if worst is None or limit < worst[0]:
+                worst = (limit, gap, closing)
+        if worst is None or worst[0] >= self.max_speed_mm_s:
+            return None
+        limit, gap, closing = worst
+        front = next(s for s in self.sensors.values() if s.face == "front")
+        what = f"someone coming towards the robot {gap:.0f} mm ahead ({closing:.0f} mm/s)"
+        if limit < cfg.min_slow_speed_mm_s:
+            return _Finding(SafetyState.STOP, front, None, what, 0.0, gap, True)
+        return _Finding(SafetyState.SLOW, front, None, f"{what}, slowing", limit, gap, True)
+
     def _lost_mover(self, now: float) -> _Finding | None:
         """Someone who walked out of every cone near the path may step back into it from a
         blind spot at any moment: past there, the robot goes slowly enough to stop at once."""
@@ -473,9 +503,9 @@ class CollisionMonitor:
         intrusion = self._intrusion(speed)
         if intrusion is not None:
             findings.append(intrusion)
-        lost = self._lost_mover(now)
-        if lost is not None:
-            findings.append(lost)
+        for extra in (self._oncoming(), self._lost_mover(now)):
+            if extra is not None:
+                findings.append(extra)
         worst = max(
             findings,
             key=lambda f: (
