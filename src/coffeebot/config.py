@@ -248,7 +248,11 @@ class TrackingConfig(Section):
     """Returns followed over scans (perception/tracking.py): people walking into the way."""
 
     max_range_mm: float = Field(
-        2500.0, gt=0, le=RANGE_MM, description="readings further are not tracked"
+        4000.0,
+        gt=0,
+        le=RANGE_MM,
+        description="readings further are not tracked: someone walking towards a robot at "
+        "cruise speed must be tracked from 2.5 m for it to stop before they meet",
     )
     range_sigma_mm: float = Field(
         30.0, gt=0, le=DISTANCE_MM, description="a reading's error along its axis"
@@ -448,12 +452,13 @@ class MotionConfig(Section):
 
     cruise_speed_mm_s: float = Field(500.0, gt=0, le=SPEED_MM_S)
     max_speed_mm_s: float = Field(
-        800.0,
+        500.0,
         gt=0,
         le=SPEED_MM_S,
-        description="the robot's rated speed, whatever an instruction asks: from 1 m/s it "
-        "needs 1.2 m to stop, beyond where it reliably sees a chair's pole or someone "
-        "stepping in 1 m ahead (docs/safety.md)",
+        description="the robot's rated speed, whatever an instruction asks: from 500 mm/s it "
+        "and someone walking towards it at 1600 mm/s close 2.3 m while it stops, about as "
+        "far as it tracks people; from 1 m/s it needs 1.2 m to stop for a chair's pole, "
+        "beyond where it reliably sees one (docs/safety.md)",
     )
     approach_speed_mm_s: float = Field(
         150.0,
