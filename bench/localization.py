@@ -192,7 +192,8 @@ class Drive:
         floor = self.world.floor
         goal = self.travel_mm + distance_mm
         forward = abs(wrap_deg(direction_deg - floor.hallway.heading_deg)) < 90
-        while self.travel_mm < goal:
+        deadline = self.world.t_s + min(distance_mm, 50_000.0) / SPEED_MM_S * 2 + 10.0
+        while self.travel_mm < goal and self.world.t_s < deadline:
             s, _ = floor.to_hallway(self.world.pose.x_mm, self.world.pose.y_mm)
             if (forward and s > floor.hallway.length_mm - 2000) or (not forward and s < 2000):
                 break

@@ -99,6 +99,7 @@ class ParticlePoseFusion:
         self.injected = 0
         """Particles injected by recovery since the start (for benchmarks and logs)."""
         self._estimate: tuple[np.ndarray, np.ndarray] | None = None
+        self._weights: np.ndarray | None = None
 
     # --- the floor ------------------------------------------------------------------------
 
@@ -142,13 +143,17 @@ class ParticlePoseFusion:
 
     @property
     def weights(self) -> np.ndarray:
-        w = np.exp(self.log_w - self.log_w.max())
-        return w / w.sum()
+        """Normalised weights (cached until the next measurement)."""
+        if self._weights is None:
+            w = np.exp(self.log_w - self.log_w.max())
+            self._weights = w / w.sum()
+        return self._weights
 
     def _set(self, particles: np.ndarray) -> None:
         particles[:, 2] = wrap(particles[:, 2])
         self.particles = particles
         self.log_w = np.zeros(len(particles))
+        self._weights = None
         self._estimate = None
 
     def _forget_motion(self) -> None:
@@ -200,9 +205,7 @@ class ParticlePoseFusion:
                         break
                     redo = ~near
                     xy[redo] = self.rng.normal(around, sigma_mm, (int(redo.sum()), 2))
-                    near[redo] = (
-                        self.field.nearest(xy[redo, 0], xy[redo, 1]) >= self.clearance_mm
-                    )
+                    near[redo] = self.field.nearest(xy[redo, 0], xy[redo, 1]) >= self.clearance_mm
         elif len(free):
             cells = free[self.rng.integers(len(free), size=n)]
             half = self.field.resolution_mm / 2
@@ -262,6 +265,7 @@ class ParticlePoseFusion:
         """Fold one measurement into the weights, then resample if it is time."""
         self.log_w = self.log_w + log_likelihood
         self.log_w -= self.log_w.max()
+        self._weights = None
         self._estimate = None
         self.monitors[source].update(fit)
         inject = max(m.injection_probability for m in self.monitors.values())
@@ -277,9 +281,10 @@ class ParticlePoseFusion:
         if not self.initialised:
             return False
         cfg = self.cfg
-        moved = self._scan_travel_mm >= cfg.update_min_mm or math.degrees(
-            self._scan_turn_rad
-        ) >= cfg.update_min_deg
+        moved = (
+            self._scan_travel_mm >= cfg.update_min_mm
+            or math.degrees(self._scan_turn_rad) >= cfg.update_min_deg
+        )
         if not (moved or self._scan_due):
             return False
         self._apply_motion()
@@ -350,8 +355,12 @@ class ParticlePoseFusion:
             quantile=cfg.kld_quantile,
             rng=self.rng,
         )
-        fresh = round(inject * n)
-        kept = self.particles[low_variance_indices(weights, n - fresh, self.rng)]
+        # Fresh particles need every heading: their share is of the most the filter may
+        # hold, not of a converged count of a few hundred.
+        fresh = round(inject * cfg.max_particles)
+        kept = self.particles[
+            low_variance_indices(weights, max(1, round((1 - inject) * n)), self.rng)
+        ]
         if cfg.roughening > 0 and len(kept) > 1:
             spread = np.array([kept[:, 0].std(), kept[:, 1].std(), self._heading_spread(kept)])
             jitter = cfg.roughening * spread * len(kept) ** (-1.0 / 3.0)
@@ -376,6 +385,14 @@ class ParticlePoseFusion:
         if self._estimate is not None:
             return self._estimate
         p, w = self.particles, self.weights
+        mean = self._weighted_mean(p, w)
+        delta = np.column_stack([p[:, 0] - mean[0], p[:, 1] - mean[1], wrap(p[:, 2] - mean[2])])
+        if (np.abs(delta[:, :2]) <= MODE_RADIUS_MM).all() and (
+            np.abs(delta[:, 2]) <= MODE_RADIUS_RAD
+        ).all():
+            # One compact cloud (tracking): its mean is the mode.
+            self._estimate = (mean, (delta * w[:, None]).T @ delta)
+            return self._estimate
         keys = (
             np.floor(p[:, 0] / MODE_BIN_MM).astype(np.int64) * 100_003
             + np.floor(p[:, 1] / MODE_BIN_MM).astype(np.int64)
@@ -406,8 +423,10 @@ class ParticlePoseFusion:
         dx, dy, dth = self._pending
         c, s = math.cos(mean[2]), math.sin(mean[2])
         heading = math.remainder(mean[2] + dth, math.tau)
-        return float(mean[0] + c * dx - s * dy), float(mean[1] + s * dx + c * dy), math.degrees(
-            heading
+        return (
+            float(mean[0] + c * dx - s * dy),
+            float(mean[1] + s * dx + c * dy),
+            math.degrees(heading),
         )
 
     def covariance(self) -> np.ndarray:
