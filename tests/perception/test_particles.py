@@ -21,6 +21,7 @@ from coffeebot.perception.fusion import OdometryStep
 from coffeebot.perception.likelihood_field import LikelihoodField
 from coffeebot.perception.particles import ParticlePoseFusion
 from coffeebot.perception.range_model import RangeModel
+from coffeebot.perception.recovery import RecoveryMonitor
 from coffeebot.perception.resampling import (
     adaptive_count,
     effective_sample_size,
@@ -408,3 +409,17 @@ def test_the_state_estimator_picks_the_fusion_from_the_config() -> None:
     assert cloud is not None and len(cloud.x_mm) == 10 and cloud.floor == 2
     fix = UwbFix(x_mm=20000, y_mm=-295, z_mm=900, quality=80)
     assert pf.on_uwb(fix, 0.0)
+
+
+def test_recovery_asks_for_particles_only_when_the_fit_falls() -> None:
+    monitor = RecoveryMonitor(alpha_slow=0.001, alpha_fast=0.1)
+    for _ in range(50):
+        monitor.update(0.8)
+    assert monitor.injection_probability == 0.0
+    monitor.update(0.0)  # lost: the fast average drops by a tenth of the way
+    assert monitor.injection_probability == pytest.approx(1 - 0.72 / 0.7992, rel=1e-3)
+    monitor.update(math.nan)  # no evidence, no change
+    assert monitor.injection_probability == pytest.approx(1 - 0.72 / 0.7992, rel=1e-3)
+    monitor.reset()
+    monitor.update(0.1)
+    assert monitor.injection_probability == 0.0

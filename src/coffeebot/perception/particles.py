@@ -31,7 +31,7 @@ import numpy as np
 from coffeebot.config import ParticleFilterConfig, StateConfig, TofConfig
 from coffeebot.floorplan import Floor, FloorPlan
 from coffeebot.messages import RangeScan
-from coffeebot.perception.fusion import OdometryStep, ParticleSummary
+from coffeebot.perception.fusion import CHI2_1DOF_999, OdometryStep, ParticleSummary
 from coffeebot.perception.likelihood_field import LikelihoodField
 from coffeebot.perception.range_model import RangeModel
 from coffeebot.perception.recovery import RecoveryMonitor
@@ -261,13 +261,16 @@ class ParticlePoseFusion:
 
     # --- measurements ---------------------------------------------------------------------
 
-    def _weigh(self, log_likelihood: np.ndarray, source: str, fit: float) -> None:
-        """Fold one measurement into the weights, then resample if it is time."""
+    def _weigh(self, log_likelihood: np.ndarray, fit: tuple[str, float] | None = None) -> None:
+        """Fold one measurement into the weights, then resample if it is time. ``fit``: the
+        recovery monitor it feeds (scans and fixes do; the optional extra sources do not)."""
         self.log_w = self.log_w + log_likelihood
         self.log_w -= self.log_w.max()
         self._weights = None
         self._estimate = None
-        self.monitors[source].update(fit)
+        if fit is not None:
+            source, value = fit
+            self.monitors[source].update(value)
         inject = max(m.injection_probability for m in self.monitors.values())
         ess = effective_sample_size(self.weights)
         if inject > 0 or ess < self.cfg.resample_ess_fraction * len(self.particles):
@@ -293,8 +296,7 @@ class ParticlePoseFusion:
             return False
         self._scan_travel_mm = self._scan_turn_rad = 0.0
         self._scan_due = False
-        fit = self._fit(result.log_fit)
-        self._weigh(result.log_likelihood, "ranges", fit)
+        self._weigh(result.log_likelihood, ("ranges", self._fit(result.log_fit)))
         return True
 
     def update_position(self, x_mm: float, y_mm: float, sigma_mm: float) -> bool:
@@ -311,7 +313,7 @@ class ParticlePoseFusion:
         floor = eps * math.exp(-0.5 * self.state_cfg.uwb_gate_sigma**2)
         likelihood = (1.0 - eps) * np.exp(-0.5 * d2) + floor
         fit = float(np.dot(self.weights, likelihood)) / (1.0 - eps + floor)
-        self._weigh(np.log(likelihood), "uwb", fit)
+        self._weigh(np.log(likelihood), ("uwb", fit))
         return True
 
     def _update_gaussian(self, innovation: np.ndarray, sigma: float) -> bool:
@@ -319,7 +321,7 @@ class ParticlePoseFusion:
         if not (np.isfinite(innovation).all() and sigma > 0 and self.initialised):
             return False
         z2 = (innovation / sigma) ** 2
-        self._weigh(np.log(np.exp(-0.5 * z2) + math.exp(-0.5 * 10.83)), "ranges", math.nan)
+        self._weigh(np.log(np.exp(-0.5 * z2) + math.exp(-0.5 * CHI2_1DOF_999)))
         return True
 
     def update_heading(self, heading_deg: float, sigma_deg: float) -> bool:
