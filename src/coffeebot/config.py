@@ -282,6 +282,13 @@ class ParticleFilterConfig(Section):
     min_signal_rate_mcps: float = Field(
         0.0, ge=0, description="readings reporting a weaker signal than this are skipped"
     )
+    elevator_blind_mm: float = Field(
+        2000.0,
+        ge=0,
+        description="scans are not weighed while the estimate is this close to an elevator "
+        "door: the car behind it is not in the floor plan, and its walls seen through the "
+        "open door pulled the cloud sideways into the jamb; odometry and UWB carry it there",
+    )
     # Other sources as likelihoods.
     uwb_outlier_probability: float = Field(
         0.05, ge=0, lt=1, description="share of UWB fixes that are multipath outliers"

@@ -288,7 +288,7 @@ class ParticlePoseFusion:
             self._scan_travel_mm >= cfg.update_min_mm
             or math.degrees(self._scan_turn_rad) >= cfg.update_min_deg
         )
-        if not (moved or self._scan_due):
+        if not (moved or self._scan_due) or self._at_elevator():
             return False
         self._apply_motion()
         result = self.model.evaluate(self.field, scan, self.particles)
@@ -298,6 +298,16 @@ class ParticlePoseFusion:
         self._scan_due = False
         self._weigh(result.log_likelihood, ("ranges", self._fit(result.log_fit)))
         return True
+
+    def _at_elevator(self) -> bool:
+        """Near the elevator door, where the plan does not know what the sensors see."""
+        door = self.floor.elevator
+        if door is None or self.cfg.elevator_blind_mm <= 0:
+            return False
+        sign = 1.0 if door.side == "left" else -1.0
+        x, y = self.floor.from_hallway(door.at_mm, sign * self.floor.hallway.width_mm / 2)
+        px, py, _ = self.pose()
+        return math.hypot(px - x, py - y) < self.cfg.elevator_blind_mm
 
     def update_position(self, x_mm: float, y_mm: float, sigma_mm: float) -> bool:
         if not (math.isfinite(x_mm) and math.isfinite(y_mm) and sigma_mm > 0):
