@@ -20,7 +20,8 @@ over its own estimate, as in the daemon. Odometry at 50 Hz, scans and UWB at 10 
 * global: the filter starts with no prior, the robot anywhere in either hallway facing
   anywhere; it turns to the hallway and drives on; localized as above.
 * update_ms: CPU time of the fusion per 100 ms cycle (five odometry steps, a fix, a scan, the
-  angle and door events), and the particle count it ran at.
+  angle and door events) while tracking, and the median particle count it ran at; each
+  floor's likelihood field (built once, on first use) is built before.
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ from coffeebot.messages import AngleEstimate, Odometry, RangeReading, RangeScan
 from coffeebot.perception.angle import AngleEstimator
 from coffeebot.perception.door import DoorDetector
 from coffeebot.perception.geometry import wrap_deg
+from coffeebot.perception.particles import ParticlePoseFusion
 from coffeebot.perception.state import StateEstimator, make_fusion
 from coffeebot.sim.world import Pose, RobotSpec, World
 from coffeebot.sim.world.trace import hallway_pose
@@ -84,9 +86,13 @@ class Filter:
             update={"state": config.state.model_copy(update={"fusion": name})}
         )
         cfg = fusion_config.state
+        fusion = make_fusion(fusion_config, plan)
+        if isinstance(fusion, ParticlePoseFusion):
+            for floor in plan.floors:  # built once per floor on first use: not an update
+                fusion.likelihood_field(floor.level)
         return cls(
             name,
-            StateEstimator(plan, config.motor, cfg, make_fusion(fusion_config, plan)),
+            StateEstimator(plan, config.motor, cfg, fusion),
             AngleEstimator(config.tof.sensors, config.angle, config.tof.effective_half_fov_deg),
             DoorDetector(config.tof.sensors, config.door, config.tof.effective_half_fov_deg),
         )

@@ -93,8 +93,15 @@ class LikelihoodField:
     def nearest(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Distance to the nearest wall at each point's cell: coarser than calling the
         field, a third of the cost, for checks that only ask "is a wall near?"."""
-        i, j = self.cell(x, y)
-        return self._flat.take(i * self.shape[1] + j)
+        nx, ny = self.shape
+        scale = 1.0 / self.resolution_mm
+        i = ((x - (self.origin[0] - self.resolution_mm / 2)) * scale).astype(np.int64)
+        j = ((y - (self.origin[1] - self.resolution_mm / 2)) * scale).astype(np.int64)
+        np.clip(i, 0, nx - 1, out=i)
+        np.clip(j, 0, ny - 1, out=j)
+        i *= ny
+        i += j
+        return self._flat.take(i)
 
     def free_cells(self, clearance_mm: float, inside_of: tuple[float, float]) -> np.ndarray:
         """Centres (k, 2) of the cells a body needing ``clearance_mm`` could stand in,

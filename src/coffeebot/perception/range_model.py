@@ -60,6 +60,18 @@ class RangeModel:
         )
         steps = max(1, math.floor(self.max_range_mm / cfg.no_target_step_mm))
         self._march = cfg.no_target_step_mm * np.arange(1, steps + 1)
+        # Per sensor id, once: mount offsets, and the cosines and sines of the arc's
+        # directions in the robot frame, so a scan costs no trigonometry per particle.
+        ids = sorted(self.mounts)
+        self._row = {sensor: k for k, sensor in enumerate(ids)}
+        mounts = [self.mounts[i] for i in ids]
+        self._mx = np.array([m.x_mm for m in mounts])
+        self._my = np.array([m.y_mm for m in mounts])
+        arc = np.stack([math.radians(m.yaw_deg) + self._arc(m) for m in mounts])  # (S, A)
+        self._arc_cos, self._arc_sin = np.cos(arc), np.sin(arc)
+        yaw = np.radians([m.yaw_deg for m in mounts])
+        self._yaw_cos, self._yaw_sin = np.cos(yaw), np.sin(yaw)
+        self._tan_half = np.tan(np.radians([m.fov_deg / 2 for m in mounts]))
 
     def _arc(self, mount: TofSensorConfig) -> np.ndarray:
         half = math.radians(mount.fov_deg / 2)
@@ -104,38 +116,33 @@ class RangeModel:
         clear = [r for r in readings if r.status in NO_TARGET]
         log_p = np.zeros(n)
         log_fit = np.zeros(n)
-        x, y, th = particles[:, 0:1], particles[:, 1:2], particles[:, 2:3]
-        c, s = np.cos(th), np.sin(th)
+        x, y = particles[:, 0:1], particles[:, 1:2]
+        c, s = np.cos(particles[:, 2:3]), np.sin(particles[:, 2:3])
         if valid:
-            mounts = [self.mounts[r.sensor] for r in valid]
-            mx = np.array([m.x_mm for m in mounts])
-            my = np.array([m.y_mm for m in mounts])
+            rows = [self._row[rd.sensor] for rd in valid]
             r = np.array([float(rd.distance_mm or 0) for rd in valid])
-            yaw = np.array([math.radians(m.yaw_deg) for m in mounts])[:, None] + np.stack(
-                [self._arc(m) for m in mounts]
-            )  # (V, A)
+            mx, my = self._mx[rows], self._my[rows]
             ox, oy = x + c * mx - s * my, y + s * mx + c * my  # (N, V)
-            angle = th[:, :, None] + yaw[None]  # (N, V, A)
-            ex = ox[:, :, None] + r[None, :, None] * np.cos(angle)
-            ey = oy[:, :, None] + r[None, :, None] * np.sin(angle)
+            ac, asn = self._arc_cos[rows] * r[:, None], self._arc_sin[rows] * r[:, None]
+            c3, s3 = c[:, :, None], s[:, :, None]
+            ex = ox[:, :, None] + c3 * ac - s3 * asn  # (N, V, A)
+            ey = oy[:, :, None] + s3 * ac + c3 * asn
             miss = field(ex.ravel(), ey.ravel()).reshape(ex.shape).min(axis=2)  # (N, V)
             p = np.log(self.hit_likelihood(miss, r[None, :]))
             best = np.log(self.hit_likelihood(np.zeros_like(r), r))
             log_p += p.sum(axis=1)
             log_fit += (p - best[None, :]).sum(axis=1)
         if clear:
-            mounts = [self.mounts[rd.sensor] for rd in clear]
-            mx = np.array([m.x_mm for m in mounts])
-            my = np.array([m.y_mm for m in mounts])
-            yaw = np.array([math.radians(m.yaw_deg) for m in mounts])
-            tan_half = np.array([math.tan(math.radians(m.fov_deg / 2)) for m in mounts])
+            rows = [self._row[rd.sensor] for rd in clear]
+            mx, my = self._mx[rows], self._my[rows]
             ox, oy = x + c * mx - s * my, y + s * mx + c * my  # (N, W)
-            angle = th + yaw[None, :]
+            yc, ys = self._yaw_cos[rows], self._yaw_sin[rows]
+            ux, uy = c * yc - s * ys, s * yc + c * ys  # axis directions (N, W)
             t = self._march[None, None, :]  # (1, 1, J)
-            px = ox[:, :, None] + t * np.cos(angle)[:, :, None]
-            py = oy[:, :, None] + t * np.sin(angle)[:, :, None]
+            px = ox[:, :, None] + t * ux[:, :, None]
+            py = oy[:, :, None] + t * uy[:, :, None]
             near = field.nearest(px.ravel(), py.ravel()).reshape(px.shape)
-            wall = (near < t * tan_half[None, :, None]).any(axis=2)  # (N, W)
+            wall = (near < t * self._tan_half[rows][None, :, None]).any(axis=2)  # (N, W)
             cfg = self.cfg
             p = np.log(np.where(wall, cfg.no_target_when_wall, cfg.no_target_when_clear))
             best = math.log(max(cfg.no_target_when_wall, cfg.no_target_when_clear))
