@@ -386,9 +386,7 @@ def bench_global(plan: FloorPlan, config: RobotConfig, spec: RobotSpec, trials: 
         x, y = floor.from_hallway(s, d)
         heading = float(rng.uniform(-180.0, 180.0))
         world = World(plan, spec, floor=level, pose=Pose(x, y, heading), seed=5000 + trial)
-        f = Filter.make("particles", config, plan)
-        f.state.floor = level
-        f.state.fusion.change_floor(level)
+        f = Filter.make("particles", config, plan)  # no prior: the first fix names the floor
         drive = Drive(world, [f])
         drive.rest(1.0)
         forward = s < floor.hallway.length_mm / 2
