@@ -4,8 +4,8 @@
     python bench/deliveries_by_fusion.py --fusion particles --json
 
 The six scenarios of ``tests/sim/test_deliveries.py`` (the test suite runs all six with the
-Kalman filter and two with the particle filter, to keep its time), each with ``[state]
-fusion`` set as asked, at 4x. Per run: whether every order was delivered, collisions, the
+particle filter, the default, and two with the Kalman filter, to keep its time), each with
+``[state] fusion`` set as asked, at 4x. Per run: whether every order was delivered, collisions, the
 worst stop error at the door (ground truth) and the real-time factor the machine kept.
 """
 

@@ -344,9 +344,9 @@ class StateConfig(Section):
     """Pose fusion: seed 004 odometry and complementary filter, plus UWB, walls and doors."""
 
     fusion: Literal["ekf", "particles"] = Field(
-        "ekf",
-        description="the extended Kalman filter, or the particle filter on the floor plan "
-        "([state.particles]); docs/localization.md compares them",
+        "particles",
+        description="the particle filter on the floor plan ([state.particles]), or the "
+        "extended Kalman filter; docs/localization.md compares them",
     )
     particles: ParticleFilterConfig = ParticleFilterConfig()
     initial_floor: int = 2
