@@ -20,8 +20,8 @@ over its own estimate, as in the daemon. Odometry at 50 Hz, scans and UWB at 10 
 * global: the filter starts with no prior, the robot anywhere in either hallway facing
   anywhere; it turns to the hallway and drives on; localized as above.
 * update_ms: CPU time of the fusion per 100 ms cycle (five odometry steps, a fix, a scan, the
-  angle and door events) while tracking, and the median particle count it ran at; each
-  floor's likelihood field (built once, on first use) is built before.
+  angle and door events) while tracking, and the median particle count it ran at (the
+  floors' likelihood fields are built with the filter, before).
 """
 
 from __future__ import annotations
@@ -44,7 +44,6 @@ from coffeebot.messages import AngleEstimate, Odometry, RangeReading, RangeScan
 from coffeebot.perception.angle import AngleEstimator
 from coffeebot.perception.door import DoorDetector
 from coffeebot.perception.geometry import wrap_deg
-from coffeebot.perception.particles import ParticlePoseFusion
 from coffeebot.perception.state import StateEstimator, make_fusion
 from coffeebot.sim.world import Pose, RobotSpec, World
 from coffeebot.sim.world.trace import hallway_pose
@@ -87,9 +86,6 @@ class Filter:
         )
         cfg = fusion_config.state
         fusion = make_fusion(fusion_config, plan)
-        if isinstance(fusion, ParticlePoseFusion):
-            for floor in plan.floors:  # built once per floor on first use: not an update
-                fusion.likelihood_field(floor.level)
         return cls(
             name,
             StateEstimator(plan, config.motor, cfg, fusion),

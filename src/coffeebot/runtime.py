@@ -250,19 +250,24 @@ async def build_sim(
         sigma_heading_deg=5.0,
     )
     with tempfile.TemporaryDirectory(prefix="coffeebot-sim-") as tmp:
+        # Modules first (the particle filter builds its floors' likelihood fields, ~1 s),
+        # then the clock starts from zero with the simulated devices: building is not
+        # simulated time.
+        runtime = assemble(
+            sim.config,
+            plan,
+            clock=clock,
+            open_i2c=lambda: sim.tof.bus,
+            store_path=Path(tmp) / "orders.sqlite3",
+            start=start,
+            sim=sim,
+            extra=extra,
+            web=web,
+        )
+        clock.restart(0.0)
         sim.start()
         try:
-            yield assemble(
-                sim.config,
-                plan,
-                clock=clock,
-                open_i2c=lambda: sim.tof.bus,
-                store_path=Path(tmp) / "orders.sqlite3",
-                start=start,
-                sim=sim,
-                extra=extra,
-                web=web,
-            )
+            yield runtime
         finally:
             sim.close()
 

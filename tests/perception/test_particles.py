@@ -398,7 +398,10 @@ def test_an_empty_floor_gives_a_flat_answer_not_an_error() -> None:
 
 
 def test_the_state_estimator_picks_the_fusion_from_the_config() -> None:
-    ekf = StateEstimator(PLAN, CONFIG.motor, CONFIG.state, make_fusion(CONFIG, PLAN))
+    ekf_config = CONFIG.model_copy(
+        update={"state": CONFIG.state.model_copy(update={"fusion": "ekf"})}
+    )
+    ekf = StateEstimator(PLAN, CONFIG.motor, ekf_config.state, make_fusion(ekf_config, PLAN))
     assert ekf.pose().particles is None
     assert ekf.cloud(10) is None
     pf = StateEstimator(

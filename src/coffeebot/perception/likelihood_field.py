@@ -11,6 +11,7 @@ well under a millimetre along a flat wall instead of to half a cell.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -125,3 +126,13 @@ def point_segment_distance(x: np.ndarray, y: np.ndarray, segments: np.ndarray) -
     length2 = np.maximum(ex * ex + ey * ey, 1e-9)
     t = np.clip(((x - px) * ex + (y - py) * ey) / length2, 0.0, 1.0)
     return np.hypot(px + t * ex - x, py + t * ey - y)
+
+
+def field_for(floor: Floor, resolution_mm: float, margin_mm: float) -> LikelihoodField:
+    """A floor's field, built once per process for each distinct floor and grid."""
+    return _cached_field(floor.model_dump_json(), resolution_mm, margin_mm)
+
+
+@functools.lru_cache(maxsize=16)
+def _cached_field(floor_json: str, resolution_mm: float, margin_mm: float) -> LikelihoodField:
+    return LikelihoodField(Floor.model_validate_json(floor_json), resolution_mm, margin_mm)

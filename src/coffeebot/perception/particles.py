@@ -32,7 +32,7 @@ from coffeebot.config import ParticleFilterConfig, StateConfig, TofConfig
 from coffeebot.floorplan import Floor, FloorPlan
 from coffeebot.messages import RangeScan
 from coffeebot.perception.fusion import CHI2_1DOF_999, OdometryStep, ParticleSummary
-from coffeebot.perception.likelihood_field import LikelihoodField
+from coffeebot.perception.likelihood_field import LikelihoodField, field_for
 from coffeebot.perception.range_model import RangeModel
 from coffeebot.perception.recovery import RecoveryMonitor
 from coffeebot.perception.resampling import (
@@ -79,7 +79,11 @@ class ParticlePoseFusion:
         """The filter's noise, and a separate one for drawing the published cloud, so that
         how often the map asks does not change what the filter does."""
         self.level = cfg.initial_floor
-        self._fields: dict[int, LikelihoodField] = {}
+        # Every floor's field now, not on arrival: building one takes ~0.6 s here (seconds
+        # on the robot), which in the elevator would stall the event loop, control included.
+        self._fields: dict[int, LikelihoodField] = {
+            f.level: field_for(f, self.cfg.grid_mm, FIELD_MARGIN_MM) for f in plan.floors
+        }
         self._free: dict[int, np.ndarray] = {}
         self.particles = np.zeros((0, 3))
         self.log_w = np.zeros(0)
@@ -113,10 +117,7 @@ class ParticlePoseFusion:
         return self.likelihood_field(self.level)
 
     def likelihood_field(self, level: int) -> LikelihoodField:
-        """A floor's field, built on first use (~0.6 s for a 44 m floor)."""
-        if level not in self._fields:
-            floor = self.plan.floor(level)
-            self._fields[level] = LikelihoodField(floor, self.cfg.grid_mm, FIELD_MARGIN_MM)
+        """A floor's field (all are built with the filter)."""
         return self._fields[level]
 
     def free_space(self) -> np.ndarray:
