@@ -114,9 +114,8 @@ class LikelihoodField:
         label = labels[i[0], j[0]]
         if label == 0:
             return np.zeros((0, 2))
-        cx, cy = self.centres()
-        mask = labels == label
-        return np.stack([cx[mask], cy[mask]], axis=1)
+        i, j = np.nonzero(labels == label)
+        return self.origin + self.resolution_mm * np.column_stack([i, j])
 
 
 def point_segment_distance(x: np.ndarray, y: np.ndarray, segments: np.ndarray) -> np.ndarray:

@@ -84,7 +84,8 @@ class ParticlePoseFusion:
         self._fields: dict[int, LikelihoodField] = {
             f.level: field_for(f, self.cfg.grid_mm, FIELD_MARGIN_MM) for f in plan.floors
         }
-        self._free: dict[int, np.ndarray] = {}
+        self._free = {level: self._free_space(level) for level in self._fields}
+        """Where the body fits on each floor: global localization and injection sample it."""
         self.particles = np.zeros((0, 3))
         self.log_w = np.zeros(0)
         self._pending = np.zeros(3)
@@ -121,11 +122,13 @@ class ParticlePoseFusion:
         return self._fields[level]
 
     def free_space(self) -> np.ndarray:
-        """Cell centres where the body fits, connected to the hallway: (k, 2)."""
-        if self.level not in self._free:
-            hallway = self.floor.from_hallway(self.floor.hallway.length_mm / 2, 0.0)
-            self._free[self.level] = self.field.free_cells(self.clearance_mm, hallway)
+        """Cell centres where the body fits on this floor, connected to the hallway: (k, 2)."""
         return self._free[self.level]
+
+    def _free_space(self, level: int) -> np.ndarray:
+        floor = self.plan.floor(level)
+        hallway = floor.from_hallway(floor.hallway.length_mm / 2, 0.0)
+        return self._fields[level].free_cells(self.clearance_mm, hallway)
 
     def change_floor(self, level: int) -> None:
         """The robot is on another floor (out of the elevator): the new floor's field, and a
