@@ -308,6 +308,13 @@ class ParticleFilterConfig(Section):
     cone_points: int = Field(
         5, ge=1, description="points across each cone's arc where a reading may have come from"
     )
+    arc_half_deg: float = Field(
+        8.0,
+        ge=0,
+        le=13.5,
+        description="half-angle of that arc: a blend of what the cone sees lands near its axis "
+        "on a flat wall, nearer the cone's edge where one side of it is much closer",
+    )
     sigma_hit_mm: float = Field(25.0, gt=0, description="reading error near the sensor")
     sigma_hit_per_m: float = Field(
         25.0, ge=0, description="added to sigma_hit_mm per metre of reading (mm)"
@@ -321,10 +328,27 @@ class ParticleFilterConfig(Section):
     )
     z_random: float = Field(0.15, ge=0, description="weight of unexplained readings")
     no_target_when_clear: float = Field(
-        0.9, gt=0, le=1, description="P(no target) when the plan has nothing in the cone's range"
+        0.9,
+        gt=0,
+        le=1,
+        description="P(nothing ranged: signal fail, out of bounds) when the plan has no surface "
+        "within reach of the checked cone",
     )
     no_target_when_wall: float = Field(
-        0.1, gt=0, le=1, description="P(no target) when the plan has a wall in the cone's range"
+        0.3,
+        gt=0,
+        le=1,
+        description="P(nothing ranged) when the plan has one (the simulated chip: ~0.01; kept "
+        "soft for what the plan does not know, a door left open, a dark coat)",
+    )
+    no_target_range_mm: float = Field(
+        2500.0,
+        gt=0,
+        description="a plan surface this close inside the checked cone returns enough light to "
+        "be ranged; beyond, or at a grazing angle, it may not",
+    )
+    no_target_half_deg: float = Field(
+        4.0, ge=0, le=13.5, description="half-angle of the cone checked for a plan surface"
     )
     no_target_step_mm: float = Field(
         200.0, gt=0, description="spacing of the points along the cone checked for walls"

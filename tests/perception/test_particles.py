@@ -102,10 +102,10 @@ def test_a_reading_on_the_wall_gets_the_hit_density(box) -> None:
 def test_a_reading_behind_the_wall_is_judged_by_the_nearest_point_of_its_arc(box) -> None:
     field, model = box
     facing_wall = np.array([[5000.0, 0.0, math.pi / 2]])
-    # 1100 mm: the arc's edge points (13.5 degrees off the axis) end 1100 cos 13.5 - 1000 =
-    # 69.6 mm behind the wall, the nearest of the five; sigma = 25 + 25 * 1.1 = 52.5 mm.
+    # 1100 mm: the arc's edge points (8 degrees off the axis) end 1100 cos 8 - 1000 =
+    # 89.3 mm behind the wall, the nearest of the five; sigma = 25 + 25 * 1.1 = 52.5 mm.
     result = model.evaluate(field, scan(valid(1100)), facing_wall)
-    miss = 1100 * math.cos(math.radians(13.5)) - 1000
+    miss = 1100 * math.cos(math.radians(8.0)) - 1000
     sigma = 52.5
     hit = math.exp(-0.5 * (miss / sigma) ** 2) / (math.sqrt(2 * math.pi) * sigma)
     rest = 0.15 * 0.001 * math.exp(-1.1) + 0.15 / 4000.0
@@ -114,15 +114,36 @@ def test_a_reading_behind_the_wall_is_judged_by_the_nearest_point_of_its_arc(box
     assert result.log_fit[0] == pytest.approx(math.log((0.7 * hit + rest) / best), rel=1e-3)
 
 
-def test_no_target_is_likely_where_the_cone_sees_no_wall_in_range(box) -> None:
+def test_the_chips_sigma_widens_the_hit_term(box) -> None:
     field, model = box
-    no_target = RangeReading(sensor=0, status=ReadingStatus.NO_TARGET)
-    # Along the hallway from the centre line, the cone (13.5 degrees) reaches the walls only
-    # at 1000 / tan(13.5) = 4165 mm, beyond the 4000 mm range: "clear", 0.9. From 200 mm off
-    # the wall it reaches it at 833 mm: 0.1.
-    poses = np.array([[3000.0, 0.0, 0.0], [3000.0, 800.0, 0.0]])
-    result = model.evaluate(field, scan(no_target), poses)
-    assert result.log_likelihood == pytest.approx(0.5 * np.log([0.9, 0.1]))
+    facing_wall = np.array([[5000.0, 0.0, math.pi / 2]])
+    # 1100 mm again, the chip reporting a 70 mm sigma (a blend of depths): the hit term's
+    # sigma is hypot(52.5, 70) = 87.5 mm, so the 89.3 mm miss costs far less.
+    blended = RangeReading(sensor=0, status=ReadingStatus.VALID, distance_mm=1100, sigma_mm=70.0)
+    result = model.evaluate(field, scan(blended), facing_wall)
+    miss = 1100 * math.cos(math.radians(8.0)) - 1000
+    sigma = math.hypot(52.5, 70.0)
+    hit = math.exp(-0.5 * (miss / sigma) ** 2) / (math.sqrt(2 * math.pi) * sigma)
+    rest = 0.15 * 0.001 * math.exp(-1.1) + 0.15 / 4000.0
+    assert result.log_likelihood[0] == pytest.approx(0.5 * math.log(0.7 * hit + rest), rel=1e-3)
+
+
+@pytest.mark.parametrize("status", [ReadingStatus.SIGNAL_FAIL, ReadingStatus.OUT_OF_BOUNDS])
+def test_nothing_ranged_is_likely_where_the_plan_has_no_surface_in_reach(
+    box, status: ReadingStatus
+) -> None:
+    field, model = box
+    nothing = RangeReading(sensor=0, status=status)
+    # Along the hallway the checked cone (4 degrees either side of the axis) meets a wall
+    # 1000 / tan 4 = 14.3 m away from the centre line, 200 / tan 4 = 2860 mm away from 200 mm
+    # off the wall: both beyond the 2500 mm a painted wall is surely ranged from, "clear"
+    # (0.9). From 100 mm off the wall it meets it at 1430 mm, and facing the wall 1 m away
+    # at once: 0.3.
+    poses = np.array(
+        [[3000.0, 0.0, 0.0], [3000.0, 800.0, 0.0], [3000.0, 900.0, 0.0], [5000.0, 0.0, 1.57]]
+    )
+    result = model.evaluate(field, scan(nothing), poses)
+    assert result.log_likelihood == pytest.approx(0.5 * np.log([0.9, 0.9, 0.3, 0.3]))
 
 
 def test_invalid_readings_say_nothing(box) -> None:
@@ -135,6 +156,7 @@ def test_invalid_readings_say_nothing(box) -> None:
         RangeReading(sensor=0, status=ReadingStatus.VALID, distance_mm=0),
         RangeReading(sensor=5, status=ReadingStatus.VALID, distance_mm=500),  # no such sensor
         RangeReading(sensor=0, status=ReadingStatus.TOO_CLOSE, distance_mm=20),
+        RangeReading(sensor=0, status=ReadingStatus.VALID, distance_mm=500, sigma_mm=math.nan),
     ]
     result = model.evaluate(field, scan(*unusable), np.array([[5000.0, 0.0, 0.0]]))
     assert result.readings == 0 and result.log_likelihood[0] == 0.0
