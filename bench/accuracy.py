@@ -23,7 +23,6 @@ motors, wheel slip, a biased gyro and ~0.1 m UWB fixes.
 from __future__ import annotations
 
 import argparse
-import functools
 import json
 import math
 import sys
@@ -33,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from coffeebot.config import RobotConfig, TofSensorConfig, load_robot_config
+from coffeebot.config import RobotConfig, load_robot_config
 from coffeebot.floorplan import Door, Floor, FloorPlan, load_floorplan
 from coffeebot.messages import (
     AngleEstimate,
@@ -48,7 +47,7 @@ from coffeebot.perception.collision import CollisionMonitor
 from coffeebot.perception.door import DoorDetector
 from coffeebot.perception.geometry import TravelFrame, side_pairs, valid_distance, wrap_deg
 from coffeebot.perception.state import StateEstimator
-from coffeebot.perception.walls import explained_points
+from coffeebot.perception.walls import explainer
 from coffeebot.sim.world import ObstacleSpec, Pose, RobotSpec, World
 from coffeebot.sim.world.obstacles import obstacle_surfaces
 from coffeebot.sim.world.tof import ToFReading, as_range_reading, robot_setup
@@ -293,8 +292,8 @@ def _approach(
         seq += 1
         left, right = world.wheel_speeds_mm_s
         # As the collision module with a good pose: the plan's walls place what they explain.
-        explain = functools.partial(
-            _explained, floor, known_pose(world.pose, obstacle.floor, 10, 1), config
+        explain = explainer(
+            floor, known_pose(world.pose, obstacle.floor, 10, 1), config.motion.wall_margin_mm
         )
         verdict = monitor.update(
             to_scan(world.scan(setup), world.t_s), (left + right) / 2, seq, 0.0, explain
@@ -323,12 +322,6 @@ def _approach(
         "clearance_mm": round(clearance, 1) if math.isfinite(clearance) else None,
         "impact_speed_mm_s": round(hits[0].speed_mm_s, 1) if hits else None,
     }
-
-
-def _explained(
-    floor: Floor, pose: PoseEstimate, config: RobotConfig, sensor: TofSensorConfig, distance: int
-) -> np.ndarray | None:
-    return explained_points(floor, pose, sensor, distance, config.motion.wall_margin_mm, 2.0)
 
 
 def _obstacles(floor: Floor) -> list[ObstacleSpec]:

@@ -6,6 +6,7 @@ command out to the wheels: what the motion module does each period, minus the bo
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -21,6 +22,7 @@ from coffeebot.messages import (
 from coffeebot.modules.motion import MotionModule
 from coffeebot.navigation.control import wheel_speeds
 from coffeebot.perception.collision import CollisionMonitor
+from coffeebot.perception.walls import explainer
 from coffeebot.sim.world import World
 from coffeebot.sim.world.tof import as_range_reading, robot_setup
 
@@ -94,7 +96,10 @@ def drive(
         module.costmap.update(
             scan, PLAN.floor(pose.floor), pose.x_mm, pose.y_mm, pose.heading_deg, world.t_s
         )
-        verdict = monitor.update(scan, pose.speed_mm_s, seq)
+        # As the collision module with a good pose: the plan's walls place what they explain.
+        explain = explainer(PLAN.floor(pose.floor), pose, CONFIG.motion.wall_margin_mm)
+        yaw_rate = math.degrees(world.body.state.yaw_rate_rad_s)
+        verdict = monitor.update(scan, pose.speed_mm_s, seq, yaw_rate, explain)
         limit = 0.0 if verdict.state is SafetyState.STOP else verdict.speed_limit_mm_s
         if limit <= 0 and verdict.may_rotate:
             # As the motion module: held by something ahead, it may still turn on the spot.

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 from perception_helpers import robot, scan
 
@@ -327,3 +328,21 @@ def test_a_side_stop_or_a_sensor_fault_never_allows_turning() -> None:
     ]
     status = m.update(faulty.model_copy(update={"readings": readings}), 0, 2)
     assert status.state is SafetyState.STOP and not status.may_rotate
+
+
+def test_the_body_is_swept_along_the_arc_it_drives() -> None:
+    """Something 900 mm ahead and just inside the corridor on the right: driving straight the
+    body meets it after 900 mm; arcing left, round it, never; arcing gently right, still
+    (it turns onto it), arcing sharply right, never (it turns inside it)."""
+    m = monitor()
+    corner = np.array([[305.0 + 900.0, -300.0]])
+    right = STRAIGHT[2]
+
+    def gap(radius_mm: float | None) -> float | None:
+        curve = 0.0 if radius_mm is None else 1.0 / radius_mm
+        return m.ahead_mm(right, 900, corner, curvature_per_mm=curve)
+
+    assert gap(None) == pytest.approx(900, abs=1)
+    assert gap(760) is None
+    assert gap(-2000) is not None
+    assert gap(-500) is None

@@ -9,20 +9,16 @@ from __future__ import annotations
 import math
 from typing import ClassVar
 
-import numpy as np
-
-from coffeebot.config import RobotConfig, TofSensorConfig
+from coffeebot.config import RobotConfig
 from coffeebot.floorplan import FloorPlan
 from coffeebot.logs import Event, Transitions
 from coffeebot.messages import COLLISION, CURRENT_STATE, ODOMETRY, RANGE_SCAN, SafetyState
 from coffeebot.modules.base import Module, ModuleContext
-from coffeebot.perception.collision import CollisionMonitor, Explainer
-from coffeebot.perception.walls import explained_points
+from coffeebot.perception.collision import CollisionMonitor
+from coffeebot.perception.walls import Explainer, explainer
 
 ODOMETRY_STALE_S = 0.5
 """Odometry older than this is no speed: the monitor assumes the worst."""
-MAX_HEADING_SIGMA_DEG = 5.0
-"""A pose heading less certain than this places no reading on the plan's walls."""
 
 
 class CollisionModule(Module):
@@ -67,16 +63,7 @@ class CollisionModule(Module):
         if state is None or age is None or age > self.config.motion.stale_pose_s:
             return None
         pose = state.msg.pose
-        if not pose.initialised or pose.sigma_heading_deg > MAX_HEADING_SIGMA_DEG:
-            return None
-        floor = self.plan.floor(pose.floor)
-        tolerance = self.config.motion.wall_margin_mm
-        slack = 2.0 * pose.sigma_heading_deg
-
-        def explain(sensor: TofSensorConfig, distance: int) -> np.ndarray | None:
-            return explained_points(floor, pose, sensor, distance, tolerance, slack)
-
-        return explain
+        return explainer(self.plan.floor(pose.floor), pose, self.config.motion.wall_margin_mm)
 
     async def run(self, ctx: ModuleContext) -> None:
         # A restart forgets everything: back to "stop" until every face is clear again.

@@ -293,7 +293,15 @@ class MotionController:
         if limit <= 0.0:
             # Held by something ahead (only turning allowed): arcs are not on offer, and the
             # window would swing back towards the lane, into it. Turn out instead.
-            return self._turn_out(ins, floor, pose, lane, direction, now, dt, limit, remaining)
+            turn = self._turn_out(ins, floor, pose, lane, direction, now, dt, limit, remaining)
+            return turn or self._blocked(ins, now, dt, limit, remaining)
+        shift = abs(lane - floor.to_hallway(pose.x_mm, pose.y_mm)[1])
+        if self.speed < self.cfg.creep_speed_mm_s and shift > self.footprint.width_mm / 2:
+            # A wide shift from a standstill in front of the obstacle: the window's arcs from
+            # rest only creep towards it. Turn out on the spot first, as far as the walls let.
+            turn = self._turn_out(ins, floor, pose, lane, direction, now, dt, limit, remaining)
+            if turn is not None:
+                return turn
         choice = self.dwa.choose(
             self.costmap,
             floor,
@@ -309,7 +317,8 @@ class MotionController:
         if choice is None or (choice.speed_mm_s < 1.0 and abs(choice.yaw_rate_dps) < 1.0):
             # Every arc from here meets the obstacle, or none does better than standing: the
             # window is too small to swing out from a standstill close to a wide obstacle.
-            return self._turn_out(ins, floor, pose, lane, direction, now, dt, limit, remaining)
+            turn = self._turn_out(ins, floor, pose, lane, direction, now, dt, limit, remaining)
+            return turn or self._blocked(ins, now, dt, limit, remaining)
         status = self._status(ins.id, MotionState.AVOIDING, now, remaining, "going around")
         self.speed = min(choice.speed_mm_s, limit)
         self.yaw_rate = choice.yaw_rate_dps
@@ -326,9 +335,9 @@ class MotionController:
         dt: float,
         limit: float,
         remaining: float,
-    ) -> Command:
+    ) -> Command | None:
         """Turn on the spot towards the detour lane, the furthest of ``DETOUR_TURNS_DEG`` the
-        costmap allows; blocked if none is free."""
+        costmap allows; None if no turn further out than the heading is free."""
         side = math.copysign(1.0, (lane - floor.to_hallway(pose.x_mm, pose.y_mm)[1]) * direction)
         travel = floor.hallway.heading_deg + (0.0 if direction > 0 else 180.0)
         for angle in DETOUR_TURNS_DEG:
@@ -340,6 +349,11 @@ class MotionController:
                 )
                 rate = self._turn_rate(pose.heading_deg, aim)
                 return self._command(0.0, rate, dt, status, limit)
+        return None
+
+    def _blocked(
+        self, ins: MoveInstruction, now: float, dt: float, limit: float, remaining: float
+    ) -> Command:
         status = self._status(ins.id, MotionState.BLOCKED, now, remaining, "no way past")
         return self._command(0.0, 0.0, dt, status, limit)
 

@@ -48,7 +48,7 @@ it.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -64,6 +64,7 @@ from coffeebot.messages import (
 )
 from coffeebot.perception.geometry import valid_distance
 from coffeebot.perception.tracking import Intrusion, ReturnTracker
+from coffeebot.perception.walls import Explainer
 
 FAILED = frozenset({ReadingStatus.HARDWARE_FAIL, ReadingStatus.BUS_ERROR})
 """Statuses meaning the sensor itself is broken: stop at once, do not wait for staleness."""
@@ -73,8 +74,13 @@ _RANK = {SafetyState.GO: 0, SafetyState.SLOW: 1, SafetyState.STOP: 2}
 CLEARANCE_SMOOTHING = 0.2
 """Weight of each new scan in the smoothed front clearance that ``may_rotate`` watches."""
 
-Explainer = Callable[[TofSensorConfig, int], "np.ndarray | None"]
-"""Where the plan's walls put a front reading (robot-frame points), or None."""
+PATH_STEP_MM = 25.0
+PATH_REACH_MM = 2500.0
+"""Along a curved path the body is swept this far, in these steps, to find what it meets."""
+MIN_CURVATURE_PER_MM = 1e-5
+"""Flatter than this (a 100 m radius) the path is straight ahead."""
+MIN_ARC_SPEED_MM_S = 50.0
+"""Slower than this the path is judged straight: turning on the spot is ``may_rotate``'s."""
 
 ARC_SAMPLES = 9
 """Points along a front reading's arc when asking which part of it is in the corridor."""
@@ -187,12 +193,17 @@ class CollisionMonitor:
         """The side gap when the current side hold began."""
 
     def ahead_mm(
-        self, sensor: TofSensorConfig, distance: float, where: np.ndarray | None = None
+        self,
+        sensor: TofSensorConfig,
+        distance: float,
+        where: np.ndarray | None = None,
+        curvature_per_mm: float = 0.0,
     ) -> float | None:
-        """How far ahead of the front face the part of a front reading that lies in the body's
-        corridor is (None: no part of it does, so it is not in the way). The reading lies
-        somewhere on the arc its cone spans, or at robot-frame points ``where`` (k, 2) when
-        the plan's walls explain it."""
+        """How far the body can drive on along its present arc (``curvature_per_mm``, left
+        positive; 0: straight ahead) before a front reading is in its way (None: never
+        within ``PATH_REACH_MM``, so it is not in the way). The reading lies somewhere on the
+        arc its cone spans, or at robot-frame points ``where`` (k, 2) when the plan's walls
+        explain it."""
         if where is None:
             angles = self._arcs[sensor.id]
             xs = sensor.x_mm + distance * np.cos(angles)
@@ -202,10 +213,26 @@ class CollisionMonitor:
             # A wall return is where the plan says: only the seed's side radius is kept.
             xs, ys = where[:, 0], where[:, 1]
             margin = self.cfg.side_radius_mm
-        inside = np.abs(ys) <= self.half_width_mm + margin
-        if not inside.any():
-            return None
-        return max(0.0, float(xs[inside].min()) - self.front_mm)
+        half = self.half_width_mm + margin
+        if abs(curvature_per_mm) < MIN_CURVATURE_PER_MM:
+            inside = np.abs(ys) <= half
+            if not inside.any():
+                return None
+            return max(0.0, float(xs[inside].min()) - self.front_mm)
+        # Along an arc the body turns about its driven axle: sweep it in steps of the axle's
+        # travel and find the first pose whose rectangle (widened by the margin) holds a point.
+        k, a = curvature_per_mm, self.axle_x_mm
+        travel = np.arange(0.0, PATH_REACH_MM, PATH_STEP_MM)[:, None]  # (S, 1)
+        turn = k * travel
+        cos, sin = np.cos(turn), np.sin(turn)
+        cx = a + np.sin(turn) / k - a * cos
+        cy = (1.0 - np.cos(turn)) / k - a * sin
+        dx, dy = xs[None, :] - cx, ys[None, :] - cy  # (S, K)
+        along = cos * dx + sin * dy
+        across = -sin * dx + cos * dy
+        hit = (np.abs(along) <= self.front_mm) & (np.abs(across) <= half)
+        steps = np.flatnonzero(hit.any(axis=1))
+        return float(travel[steps[0], 0]) if len(steps) else None
 
     def beyond_front_sweep(self, sensor: TofSensorConfig, distance: float) -> bool:
         """Whether every point of a front reading's arc is out of reach of the front corners
@@ -273,8 +300,10 @@ class CollisionMonitor:
         narrow: bool,
         now: float,
         wall: np.ndarray | None,
+        curvature_per_mm: float,
     ) -> _Finding:
-        """``wall``: where the plan's walls put this sensor's reading, if they explain it."""
+        """``wall``: where the plan's walls put this sensor's reading, if they explain it;
+        ``curvature_per_mm``: the arc the robot is driving."""
         cfg = self.cfg
         if reading is not None and (not reading.healthy or reading.status in FAILED):
             self._missed[sensor.id] = cfg.stale_cycles
@@ -307,7 +336,7 @@ class CollisionMonitor:
             return _Finding(SafetyState.GO, sensor, None, "clear", self.max_speed_mm_s)
         gap: float = distance
         if sensor.face == "front":
-            ahead = self.ahead_mm(sensor, distance, None if seen else wall)
+            ahead = self.ahead_mm(sensor, distance, None if seen else wall, curvature_per_mm)
             if ahead is None:  # a glance outside the corridor: not in the way
                 return _Finding(SafetyState.GO, sensor, None, "clear", self.max_speed_mm_s)
             gap = ahead
@@ -407,8 +436,13 @@ class CollisionMonitor:
             scan, 0.0 if speed_mm_s is None else speed_mm_s, yaw_rate_dps, skip=set(walls)
         )
         narrow = self.narrow(readings)
+        curvature = 0.0
+        if speed >= MIN_ARC_SPEED_MM_S:
+            curvature = math.radians(yaw_rate_dps) / speed
         findings = [
-            self._assess(s, readings.get(s.id), speed, s.id in narrow, now, walls.get(s.id))
+            self._assess(
+                s, readings.get(s.id), speed, s.id in narrow, now, walls.get(s.id), curvature
+            )
             for s in self.sensors.values()
         ]
         intrusion = self._intrusion(speed)

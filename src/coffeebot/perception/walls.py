@@ -12,6 +12,7 @@ wall reads nearer than the wall) keeps its whole arc.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -66,3 +67,24 @@ def explained_points(
         ],
         axis=1,
     )
+
+
+Explainer = Callable[[TofSensorConfig, int], "np.ndarray | None"]
+"""Where the plan's walls put a sensor's reading (robot-frame points), or None."""
+
+MAX_HEADING_SIGMA_DEG = 5.0
+"""A pose heading less certain than this places no reading on the plan's walls."""
+
+
+def explainer(floor: Floor, pose: PoseEstimate, tolerance_mm: float) -> Explainer | None:
+    """Wall explanations from ``pose`` (None when its heading is too uncertain to trust): a
+    reading within ``tolerance_mm`` of where some ray of the cone, widened by twice the
+    heading's sigma, meets a wall."""
+    if not pose.initialised or pose.sigma_heading_deg > MAX_HEADING_SIGMA_DEG:
+        return None
+    slack = 2.0 * pose.sigma_heading_deg
+
+    def explain(sensor: TofSensorConfig, distance: int) -> np.ndarray | None:
+        return explained_points(floor, pose, sensor, distance, tolerance_mm, slack)
+
+    return explain
