@@ -36,6 +36,7 @@ from coffeebot.modules.base import Module
 from coffeebot.runtime.assemble import Runtime
 from coffeebot.runtime.robot import build_robot
 from coffeebot.runtime.service import StopAfter, recorder, serve
+from coffeebot.survey import check_recording
 
 log = logging.getLogger("coffeebot")
 
@@ -87,6 +88,16 @@ def build_parser() -> argparse.ArgumentParser:
     floorplan = sub.add_parser("floorplan", help="floor plan tools")
     floorplan_sub = floorplan.add_subparsers(dest="floorplan_command", required=True)
     add_render_arguments(floorplan_sub.add_parser("render", help="draw a floor plan as SVG"))
+    survey = floorplan_sub.add_parser(
+        "check", help="compare a recorded pass with the floor plan; list what disagrees"
+    )
+    survey.add_argument("--recording", type=Path, required=True, metavar="PASS.mcap")
+    survey.add_argument("--floorplan", type=Path, default=DEFAULT_FLOORPLAN, help="floor plan")
+    survey.add_argument("--board", type=Path, default=DEFAULT_BOARD, help="robot description")
+    survey.add_argument(
+        "--threshold-mm", type=_positive, default=50.0, help="report larger errors (default 50)"
+    )
+    survey.add_argument("--json", action="store_true", help="print the list as JSON")
     replay = sub.add_parser("replay", help="republish a recording onto a board")
     _add_common(replay)
     replay.add_argument("file", type=Path, help="an MCAP recording")
@@ -207,6 +218,28 @@ async def _replay(config: RobotConfig, args: argparse.Namespace) -> None:
     log.info("replayed %d messages from %s", player.stats.total, args.file)
 
 
+def _survey_check(args: argparse.Namespace) -> int:
+    """``coffeebot floorplan check``: exit 0 if the plan agrees, 1 if something does not."""
+    try:
+        config = load_robot_config(args.board)
+        plan = load_floorplan(args.floorplan)
+        check = check_recording(args.recording, plan, config.tof.sensors)
+    except (ConfigError, OSError, RecordingError) as exc:
+        print(f"coffeebot: {exc}", file=sys.stderr)
+        return 2
+    found = check.disagreements(args.threshold_mm)
+    if args.json:
+        print(json.dumps([asdict(d) for d in found], indent=1))
+    else:
+        print(
+            f"{len(check.observations)} readings faced a plan surface squarely; "
+            f"{len(found)} stretches disagree by more than {args.threshold_mm:g} mm"
+        )
+        for disagreement in found:
+            print(disagreement.describe())
+    return 1 if found else 0
+
+
 def _without_config(args: argparse.Namespace) -> int:
     """The commands that need no robot configuration."""
     try:
@@ -226,7 +259,7 @@ def _without_config(args: argparse.Namespace) -> int:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if args.command == "floorplan":
-        return render_command(args)
+        return _survey_check(args) if args.floorplan_command == "check" else render_command(args)
     if args.command in ("record", "install-service"):
         return _without_config(args)
     try:

@@ -391,9 +391,182 @@ class DoorConfig(Section):
         return self
 
 
+class ParticleFilterConfig(Section):
+    """The particle filter (seed 003's AMCL) on the floor plan: ``[state.particles]``.
+
+    docs/localization.md explains each group; the defaults are what bench/localization.py
+    measured (docs/benchmarks.md).
+    """
+
+    # Particle count: KLD sampling (Fox 2003) between these bounds.
+    min_particles: int = Field(300, ge=10, description="fewest particles, however converged")
+    max_particles: int = Field(
+        3000, ge=10, description="most particles: global localization and recovery start here"
+    )
+    kld_error: float = Field(
+        0.05, gt=0, le=1, description="KLD bound between the sample and the true posterior"
+    )
+    kld_quantile: float = Field(
+        0.99, gt=0.5, lt=1, description="probability that the sample stays within that bound"
+    )
+    kld_bin_mm: float = Field(100.0, gt=0, description="histogram bin size in x and y")
+    kld_bin_deg: float = Field(5.0, gt=0, description="histogram bin size in heading")
+    resample_ess_fraction: float = Field(
+        0.5,
+        gt=0,
+        le=1,
+        description="resample when the effective sample size falls below this share of the count",
+    )
+    roughening: float = Field(
+        0.2,
+        ge=0,
+        description="resampled particles are jittered by this times the cloud's spread times "
+        "count^(-1/3) (Gordon 1993), so copies of one particle do not stay identical at rest",
+    )
+    # Motion model: seed 004 odometry steps with random-walk noise.
+    along_sigma_mm: float = Field(
+        20.0, ge=0, description="1-sigma of the distance after 1 m (grows with its square root)"
+    )
+    lateral_sigma_mm: float = Field(
+        10.0, ge=0, description="1-sigma sideways slip after 1 m (grows with its square root)"
+    )
+    heading_sigma_deg: float = Field(
+        1.0, ge=0, description="heading 1-sigma after 1 m of travel (square-root growth)"
+    )
+    turn_sigma_deg: float = Field(
+        2.0, ge=0, description="heading 1-sigma after turning one radian (square-root growth)"
+    )
+    update_min_mm: float = Field(
+        40.0, ge=0, description="range scans update the filter after this much travel ..."
+    )
+    update_min_deg: float = Field(2.0, ge=0, description="... or this much turning")
+    # Range sensor model (docs/localization.md, "Sensor model").
+    grid_mm: float = Field(20.0, gt=0, description="likelihood field cell size")
+    cone_points: int = Field(
+        5, ge=1, description="points across each cone's arc where a reading may have come from"
+    )
+    arc_half_deg: float = Field(
+        8.0,
+        ge=0,
+        le=13.5,
+        description="half-angle of that arc: a blend of what the cone sees lands near its axis "
+        "on a flat wall, nearer the cone's edge where one side of it is much closer",
+    )
+    sigma_hit_mm: float = Field(25.0, gt=0, description="reading error near the sensor")
+    sigma_hit_per_m: float = Field(
+        25.0, ge=0, description="added to sigma_hit_mm per metre of reading (mm)"
+    )
+    z_hit: float = Field(0.7, ge=0, description="weight of readings explained by the plan")
+    z_short: float = Field(
+        0.15, ge=0, description="weight of readings cut short by something not in the plan"
+    )
+    short_decay_per_m: float = Field(
+        1.0, gt=0, description="how fast the short component falls with range (per metre)"
+    )
+    z_random: float = Field(0.15, ge=0, description="weight of unexplained readings")
+    no_target_when_clear: float = Field(
+        0.9,
+        gt=0,
+        le=1,
+        description="P(nothing ranged: signal fail, out of bounds) when the plan has no surface "
+        "within reach of the checked cone",
+    )
+    no_target_when_wall: float = Field(
+        0.3,
+        gt=0,
+        le=1,
+        description="P(nothing ranged) when the plan has one (the simulated chip: ~0.01; kept "
+        "soft for what the plan does not know, a door left open, a dark coat)",
+    )
+    no_target_range_mm: float = Field(
+        2500.0,
+        gt=0,
+        description="a plan surface this close inside the checked cone returns enough light to "
+        "be ranged; beyond, or at a grazing angle, it may not",
+    )
+    no_target_half_deg: float = Field(
+        4.0, ge=0, le=13.5, description="half-angle of the cone checked for a plan surface"
+    )
+    no_target_step_mm: float = Field(
+        200.0, gt=0, description="spacing of the points along the cone checked for walls"
+    )
+    reading_weight: float = Field(
+        0.5,
+        gt=0,
+        le=1,
+        description="exponent on each reading's likelihood: readings of one wall by neighbouring "
+        "cones are not independent, and counting each fully makes the filter overconfident",
+    )
+    min_signal_rate_mcps: float = Field(
+        0.0, ge=0, description="readings reporting a weaker signal than this are skipped"
+    )
+    elevator_blind_mm: float = Field(
+        2000.0,
+        ge=0,
+        description="scans are not weighed while the estimate is this close to an elevator "
+        "door: the car behind it is not in the floor plan, and its walls seen through the "
+        "open door pulled the cloud sideways into the jamb; odometry and UWB carry it there",
+    )
+    # Other sources as likelihoods.
+    uwb_outlier_probability: float = Field(
+        0.05, ge=0, lt=1, description="share of UWB fixes that are multipath outliers"
+    )
+    use_wall_angle: bool = Field(
+        False,
+        description="also weigh the angle module's heading and wall distances (they come from "
+        "the same ToF readings the filter already uses)",
+    )
+    use_doors: bool = Field(
+        False, description="also weigh the door module's along-hallway corrections"
+    )
+    # Recovery (augmented MCL) and global localization.
+    recovery_alpha_slow: float = Field(
+        0.001, gt=0, lt=1, description="long-term average of the measurement fit"
+    )
+    recovery_alpha_fast: float = Field(
+        0.1, gt=0, lt=1, description="short-term average; below the long one, inject particles"
+    )
+    injection_sigma_mm: float = Field(
+        400.0, gt=0, description="injected particles spread this much around the last UWB fix"
+    )
+    global_sigma_mm: float = Field(
+        500.0, gt=0, description="without a prior, particles start this close to the first fix"
+    )
+    relocalize_sigma_mm: float = Field(
+        300.0, gt=0, description="on arriving at another floor, the cloud is widened to this"
+    )
+    relocalize_sigma_deg: float = Field(
+        10.0, gt=0, description="... and its headings to this"
+    )
+    # What goes on the board for the live map.
+    cloud_points: int = Field(
+        150, ge=0, description="particles published on state/particles for the map (0: none)"
+    )
+    cloud_period_s: float = Field(0.5, gt=0, description="how often they are published")
+
+    @model_validator(mode="after")
+    def _bounds(self) -> ParticleFilterConfig:
+        if self.min_particles > self.max_particles:
+            raise ValueError(
+                f"min_particles ({self.min_particles}) exceeds max_particles "
+                f"({self.max_particles})"
+            )
+        if self.recovery_alpha_slow >= self.recovery_alpha_fast:
+            raise ValueError("recovery_alpha_slow must be below recovery_alpha_fast")
+        if self.z_hit + self.z_short + self.z_random <= 0:
+            raise ValueError("z_hit + z_short + z_random must be positive")
+        return self
+
+
 class StateConfig(Section):
     """Pose fusion: seed 004 odometry and complementary filter, plus UWB, walls and doors."""
 
+    fusion: Literal["ekf", "particles"] = Field(
+        "particles",
+        description="the particle filter on the floor plan ([state.particles]), or the "
+        "extended Kalman filter; docs/localization.md compares them",
+    )
+    particles: ParticleFilterConfig = ParticleFilterConfig()
     initial_floor: int = 2
     turn_rate_dps: float = Field(
         5.0, ge=0, le=360, description="gyro yaw rate above which the robot counts as turning"

@@ -402,9 +402,24 @@ class PoseEstimate(Message):
     sigma_x_mm: float = Field(ge=0.0)
     sigma_y_mm: float = Field(ge=0.0)
     sigma_heading_deg: float = Field(ge=0.0)
+    cov_xy_mm2: float = 0.0
+    """The x-y covariance: with the sigmas, the position's uncertainty ellipse."""
     speed_mm_s: float = 0.0
     yaw_rate_dps: float = 0.0
     initialised: bool = True
+    particles: int | None = None
+    """The particle filter's particle count (None: the Kalman filter)."""
+    effective_sample_size: float | None = None
+    """How many of those particles really carry the estimate (1 / sum of squared weights)."""
+
+
+class ParticleCloud(Message):
+    """A sample of the particle filter's particles, drawn by weight, for the live map."""
+
+    floor: int
+    x_mm: list[float]
+    y_mm: list[float]
+    heading_deg: list[float]
 
 
 class CurrentState(Message):
@@ -446,6 +461,7 @@ ANGLE = Topic("perception/angle", AngleEstimate, Delivery.LATEST)
 DOOR = Topic("perception/door", DoorEvent, Delivery.RELIABLE)
 MOVE_INSTRUCTION = Topic("nav/instruction", MoveInstruction, Delivery.LATEST)
 CURRENT_STATE = Topic("state/current", CurrentState, Delivery.LATEST)
+PARTICLES = Topic("state/particles", ParticleCloud, Delivery.LATEST)
 ORDER_UPDATE = Topic("orders/update", OrderUpdate, Delivery.RELIABLE)
 MOTION_STATUS = Topic("motion/status", MotionStatus, Delivery.LATEST)
 ELEVATOR_REQUEST = Topic("elevator/request", ElevatorRequest, Delivery.RELIABLE)
@@ -466,6 +482,7 @@ ALL_TOPICS: tuple[Topic[Any], ...] = (
     DOOR,
     MOVE_INSTRUCTION,
     CURRENT_STATE,
+    PARTICLES,
     ORDER_UPDATE,
     MOTION_STATUS,
     ELEVATOR_REQUEST,

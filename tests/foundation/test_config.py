@@ -57,6 +57,21 @@ def test_out_of_range_threshold_is_refused(tmp_path: Path) -> None:
         load_robot_config(path)
 
 
+def test_the_fusion_choice_and_particle_filter_bounds_are_checked(tmp_path: Path) -> None:
+    path = tmp_path / "robot.toml"
+    path.write_text(BOARD.read_text() + '\n[state]\nfusion = "kalman"\n')
+    with pytest.raises(ConfigError, match=r"state.fusion: Input should be 'ekf' or 'particles'"):
+        load_robot_config(path)
+    path.write_text(
+        BOARD.read_text() + '\n[state]\nfusion = "particles"\n\n[state.particles]\n'
+        "min_particles = 5000\n"
+    )
+    with pytest.raises(ConfigError, match=r"state.particles: .*min_particles \(5000\) exceeds"):
+        load_robot_config(path)
+    path.write_text(BOARD.read_text() + '\n[state]\nfusion = "particles"\n')
+    assert load_robot_config(path).state.fusion == "particles"
+
+
 def test_broken_toml_and_missing_file(tmp_path: Path) -> None:
     path = tmp_path / "robot.toml"
     path.write_text("[i2c\nbus = 1")

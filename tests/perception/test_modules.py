@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import asyncio
+import math
 
+import pytest
 from perception_helpers import BOARD_FILE, robot, scan
 
 from coffeebot.board import Board
@@ -54,15 +56,20 @@ async def test_collision_verdict_in_the_same_loop_turn_as_the_scan(caplog) -> No
     assert changes == [("go", "stop"), ("stop", "go"), ("go", "stop")]
 
 
-async def test_state_module_fuses_odometry_and_uwb() -> None:
+@pytest.mark.parametrize("fusion", ["ekf", "particles"])
+async def test_state_module_fuses_odometry_and_uwb(fusion: str) -> None:
     board = Board(ALL_TOPICS)
     config = robot()
+    config = config.model_copy(update={"state": config.state.model_copy(update={"fusion": fusion})})
     modules = [StateModule(config, PLAN), AngleModule(config, PLAN), DoorModule(config, PLAN)]
     daemon = Daemon(board, modules)
     await daemon.start()
     board.publish(UWB_FIX, UwbFix(x_mm=5000, y_mm=-300, z_mm=900, quality=90))
     state = await board.next(CURRENT_STATE, timeout=1.0)
-    assert state.msg.pose.initialised and state.msg.pose.x_mm == 5000
+    first = state.msg.pose
+    # The first fix places the Kalman filter on it, and seeds the particles around it.
+    assert first.initialised
+    assert math.hypot(first.x_mm - 5000, first.y_mm + 300) <= (0.0 if fusion == "ekf" else 50.0)
     ticks_per_mm = config.motor.ticks_per_rev / (3.141592653589793 * config.motor.wheel_diameter_mm)
     for k in range(3):
         board.publish(
@@ -80,6 +87,7 @@ async def test_state_module_fuses_odometry_and_uwb() -> None:
     await daemon.shutdown()
     latest = board.latest(CURRENT_STATE)
     assert latest is not None
-    assert abs(latest.msg.pose.x_mm - 5000) > 100  # moved along its (unknown) heading
+    moved = math.hypot(latest.msg.pose.x_mm - first.x_mm, latest.msg.pose.y_mm - first.y_mm)
+    assert moved > 100  # along its (unknown) heading
     assert latest.msg.pose.speed_mm_s > 900
     assert set(latest.msg.sources) == {"uwb", "odometry"}

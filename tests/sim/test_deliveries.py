@@ -29,22 +29,34 @@ DELIVERIES = [
     "floor3-elevator",  # 305 via the elevator
     "floor3-walker",  # 308 via the elevator, a person walking towards the robot
 ]
+EKF_DELIVERIES = [
+    "floor2-box-in-lane",  # the lane left and regained: the estimate steers it
+    "floor3-elevator",  # turns in the car, a ride, another floor
+]
+"""With ``[state] fusion = "ekf"`` (the default is the particle filter): the two scenarios
+that depend most on the estimate. All six run with each fusion in
+``bench/deliveries_by_fusion.py`` (a second run of all six here would double the suite's
+longest part)."""
 AT_THE_DOOR_MM = 100.0
 """Stopped at the ordered door, well inside the door's width. The +/-50 mm precision
 target is a 95th percentile, measured over many runs by bench/delivery.py."""
 
 
-async def run(name: str) -> ScenarioReport:
+async def run(name: str, fusion: str) -> ScenarioReport:
     """The report of ``scenarios/NAME.toml`` run through the whole daemon."""
     config = load_robot_config(BOARD)
+    config = config.model_copy(update={"state": config.state.model_copy(update={"fusion": fusion})})
     scenario, plan = load_scenario(ROOT / "scenarios" / f"{name}.toml")
     return await run_scenario(config, scenario, plan, speed=SPEED)
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", DELIVERIES)
-async def test_delivers_without_touching_anything(name: str) -> None:
-    report = await run(name)
+@pytest.mark.parametrize(
+    ("name", "fusion"),
+    [(name, "particles") for name in DELIVERIES] + [(name, "ekf") for name in EKF_DELIVERIES],
+)
+async def test_delivers_without_touching_anything(name: str, fusion: str) -> None:
+    report = await run(name, fusion)
     assert report.collisions == []
     assert report.orders, "the scenario placed no order"
     for order in report.orders:

@@ -91,6 +91,8 @@ async def test_order_on_the_simulated_robot_and_watch_it_drive(
     await expect(inspector.locator("#map g.robot[data-label=estimated]")).to_have_count(1)
     await expect(inspector.locator("#map g.robot[data-label=true]")).to_have_count(1)
     await expect(inspector.locator("#map line.ray")).to_have_count(8)
+    await expect(inspector.locator("#map ellipse.uncertainty")).to_have_count(1)
+    await expect(inspector.locator("#map g.particles")).to_have_count(1)  # the default fusion
     await expect(inspector.locator('tr[data-topic="motor/command"] td').nth(4)).not_to_have_text(
         "0"
     )

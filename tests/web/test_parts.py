@@ -6,13 +6,32 @@ import pytest
 
 from coffeebot.board import Board
 from coffeebot.config import TofSensorConfig
-from coffeebot.messages import ALL_TOPICS, RANGE_SCAN, RangeReading, RangeScan, ReadingStatus
+from coffeebot.messages import (
+    ALL_TOPICS,
+    CURRENT_STATE,
+    PARTICLES,
+    RANGE_SCAN,
+    CurrentState,
+    ParticleCloud,
+    PoseEstimate,
+    RangeReading,
+    RangeScan,
+    ReadingStatus,
+)
 from coffeebot.modules.orders import OrdersModule
 from coffeebot.store import OrderStore
 from coffeebot.web import WebModule
 from coffeebot.web.context import RateLimiter
 from coffeebot.web.graph import module_graph
-from coffeebot.web.livemap import NO_TARGET_RAY_MM, MapPose, RayShape, RobotShape, map_frame
+from coffeebot.web.livemap import (
+    NO_TARGET_RAY_MM,
+    CloudShape,
+    EllipseShape,
+    MapPose,
+    RayShape,
+    RobotShape,
+    map_frame,
+)
 
 from .conftest import web_deps
 
@@ -77,3 +96,56 @@ def test_rate_limiter_burst_then_refill() -> None:
     assert limiter.take("a") == pytest.approx(1.0)
     clock.t = 10.5
     assert limiter.take("a") == 0.0
+
+
+def test_the_particle_cloud_and_the_uncertainty_ellipse_are_drawn() -> None:
+    board = Board(ALL_TOPICS)
+    # sigma_x 100, sigma_y 50, no correlation: a 95 % ellipse of 2.45 x those, along x.
+    pose = PoseEstimate(
+        x_mm=5000,
+        y_mm=0,
+        heading_deg=0,
+        floor=2,
+        sigma_x_mm=100,
+        sigma_y_mm=50,
+        sigma_heading_deg=1,
+    )
+    board.publish(CURRENT_STATE, CurrentState(pose=pose))
+    board.publish(
+        PARTICLES,
+        ParticleCloud(floor=2, x_mm=[4900, 5100], y_mm=[10, -10], heading_deg=[0, 1]),
+    )
+    here = MapPose(x_mm=5000, y_mm=0, heading_deg=0, floor=2)
+    shapes = map_frame(board, lambda: {"estimated": here}, [FRONT]).shapes
+    cloud = next(s for s in shapes if isinstance(s, CloudShape))
+    ellipse = next(s for s in shapes if isinstance(s, EllipseShape))
+    assert cloud.points == [(4900, 10), (5100, -10)]
+    assert (ellipse.rx_mm, ellipse.ry_mm) == pytest.approx((244.8, 122.4), abs=0.1)
+    assert ellipse.angle_deg == pytest.approx(0.0)
+    # A cloud from another floor (the robot just left the elevator) is not drawn.
+    board.publish(PARTICLES, ParticleCloud(floor=3, x_mm=[1], y_mm=[1], heading_deg=[0]))
+    shapes = map_frame(board, lambda: {"estimated": here}, [FRONT]).shapes
+    assert not any(isinstance(s, CloudShape) for s in shapes)
+
+
+def test_a_correlated_covariance_tilts_the_ellipse() -> None:
+    board = Board(ALL_TOPICS)
+    pose = PoseEstimate(
+        x_mm=0,
+        y_mm=0,
+        heading_deg=0,
+        floor=2,
+        sigma_x_mm=100,
+        sigma_y_mm=100,
+        sigma_heading_deg=1,
+        cov_xy_mm2=5000,
+    )
+    board.publish(CURRENT_STATE, CurrentState(pose=pose))
+    here = MapPose(x_mm=0, y_mm=0, heading_deg=0, floor=2)
+    (ellipse,) = [
+        s for s in map_frame(board, lambda: {"e": here}, []).shapes if isinstance(s, EllipseShape)
+    ]
+    # Eigenvalues 15000 and 5000 mm^2, the long axis along the diagonal.
+    assert ellipse.angle_deg == pytest.approx(45.0)
+    assert ellipse.rx_mm == pytest.approx(2.448 * 15000**0.5, rel=1e-3)
+    assert ellipse.ry_mm == pytest.approx(2.448 * 5000**0.5, rel=1e-3)

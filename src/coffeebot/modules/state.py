@@ -17,20 +17,32 @@ from coffeebot.messages import (
     MOVE_INSTRUCTION,
     ODOMETRY,
     ORDER_DISPATCH,
+    PARTICLES,
+    RANGE_SCAN,
     UWB_FIX,
     PoseEstimate,
 )
 from coffeebot.modules.base import Module, ModuleContext
 from coffeebot.perception.fusion import PoseFusion
-from coffeebot.perception.state import StateEstimator
+from coffeebot.perception.state import StateEstimator, make_fusion
 
 
 class StateModule(Module):
-    """Wraps :class:`StateEstimator`; publishes after every input that changed it."""
+    """Wraps :class:`StateEstimator`; publishes after every input that changed it, and (with
+    the particle filter) a sample of its particles every ``cloud_period_s``."""
 
     name = "state"
-    inputs = (ODOMETRY, UWB_FIX, ANGLE, DOOR, MOVE_INSTRUCTION, ORDER_DISPATCH, DELIVERY_STATUS)
-    outputs = (CURRENT_STATE,)
+    inputs = (
+        ODOMETRY,
+        UWB_FIX,
+        RANGE_SCAN,
+        ANGLE,
+        DOOR,
+        MOVE_INSTRUCTION,
+        ORDER_DISPATCH,
+        DELIVERY_STATUS,
+    )
+    outputs = (CURRENT_STATE, PARTICLES)
 
     def __init__(
         self,
@@ -39,7 +51,11 @@ class StateModule(Module):
         fusion: PoseFusion | None = None,
         start: PoseEstimate | None = None,
     ) -> None:
-        self.estimator = StateEstimator(plan, config.motor, config.state, fusion)
+        self.estimator = StateEstimator(
+            plan, config.motor, config.state, fusion or make_fusion(config, plan)
+        )
+        self.cloud = config.state.particles
+        self._cloud_at: float | None = None
         if start is not None:
             self.estimator.place(start.x_mm, start.y_mm, start.heading_deg, start.floor)
 
@@ -49,13 +65,24 @@ class StateModule(Module):
         with messages:
             async for envelope in messages:
                 if apply(envelope.msg, envelope.stamp) is not False:
-                    ctx.board.publish(CURRENT_STATE, self.estimator.current(ctx.clock.now()))
+                    now = ctx.clock.now()
+                    ctx.board.publish(CURRENT_STATE, self.estimator.current(now))
+                    self._publish_cloud(ctx, now)
+
+    def _publish_cloud(self, ctx: ModuleContext, now: float) -> None:
+        if self._cloud_at is not None and now - self._cloud_at < self.cloud.cloud_period_s:
+            return
+        cloud = self.estimator.cloud(self.cloud.cloud_points)
+        if cloud is not None:
+            self._cloud_at = now
+            ctx.board.publish(PARTICLES, cloud)
 
     async def run(self, ctx: ModuleContext) -> None:
         e = self.estimator
         handlers: list[tuple[Topic[Any], Callable[[Any, float], object]]] = [
             (ODOMETRY, e.on_odometry),
             (UWB_FIX, e.on_uwb),
+            (RANGE_SCAN, e.on_scan),
             (ANGLE, e.on_angle),
             (DOOR, e.on_door),
             (MOVE_INSTRUCTION, lambda m, _: e.on_instruction(m)),

@@ -10,6 +10,8 @@ Two pieces, kept apart so the fusion method can be swapped without touching odom
   implements it as an extended Kalman filter over (x, y, heading). Every absolute source is
   one of three measurement kinds: a position (UWB), a heading (wall angle), or a position
   offset along a direction (door landmarks along the hallway, wall distance across it).
+  The particle filter (:mod:`~coffeebot.perception.particles`) implements it too, and also
+  reads the raw range scans.
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ from typing import Protocol
 import numpy as np
 
 from coffeebot.config import MotorConfig, StateConfig
-from coffeebot.messages import Odometry
+from coffeebot.messages import Odometry, RangeScan
 from coffeebot.perception.geometry import wrap_deg
 
 CHI2_1DOF_999 = 10.83
@@ -128,6 +130,32 @@ class PoseFusion(Protocol):
         """1-sigma of x (mm), y (mm) and heading (deg)."""
         ...
 
+    def covariance(self) -> np.ndarray:
+        """3x3 covariance of (x mm, y mm, heading deg)."""
+        ...
+
+    def update_ranges(self, scan: RangeScan) -> bool:
+        """A ToF scan against the floor plan (False: not used)."""
+        ...
+
+    def change_floor(self, level: int) -> None:
+        """The robot is now on floor ``level``."""
+        ...
+
+    def summary(self) -> ParticleSummary | None:
+        """Particle count and effective sample size; None for a Kalman filter."""
+        ...
+
+    def cloud(self, points: int) -> np.ndarray | None:
+        """Up to ``points`` samples (x mm, y mm, heading deg) to draw; None: no samples."""
+        ...
+
+
+@dataclass(frozen=True)
+class ParticleSummary:
+    count: int
+    effective_sample_size: float
+
 
 class EkfPoseFusion:
     """Extended Kalman filter over (x, y, heading in rad) with a unicycle motion model."""
@@ -230,3 +258,20 @@ class EkfPoseFusion:
     def sigmas(self) -> tuple[float, float, float]:
         d = np.sqrt(np.maximum(np.diag(self.P), 0.0))
         return float(d[0]), float(d[1]), math.degrees(d[2])
+
+    def covariance(self) -> np.ndarray:
+        scale = np.array([1.0, 1.0, math.degrees(1.0)])
+        return self.P * np.outer(scale, scale)
+
+    def update_ranges(self, scan: RangeScan) -> bool:
+        """The Kalman filter sees the walls through the angle and door modules instead."""
+        return False
+
+    def change_floor(self, level: int) -> None:
+        """Floors share one frame and the car stands still: nothing changes."""
+
+    def summary(self) -> ParticleSummary | None:
+        return None
+
+    def cloud(self, points: int) -> np.ndarray | None:
+        return None

@@ -7,10 +7,11 @@ module publishes only when there is something new.
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from collections.abc import Callable
 
-from coffeebot.config import MotorConfig, StateConfig
+from coffeebot.config import MotorConfig, RobotConfig, StateConfig
 from coffeebot.floorplan import FloorPlan
 from coffeebot.messages import (
     AngleEstimate,
@@ -20,13 +21,25 @@ from coffeebot.messages import (
     MoveInstruction,
     Odometry,
     OrderDispatch,
+    ParticleCloud,
     PoseEstimate,
+    RangeScan,
     UwbFix,
 )
 from coffeebot.perception.fusion import EkfPoseFusion, Odometer, OdometryStep, PoseFusion
 from coffeebot.perception.geometry import TravelFrame
+from coffeebot.perception.particles import ParticlePoseFusion
 
 UWB_MIN_QUALITY = 10
+
+
+def make_fusion(config: RobotConfig, plan: FloorPlan) -> PoseFusion:
+    """The fusion the robot description asks for (``[state] fusion``)."""
+    if config.state.fusion == "particles":
+        return ParticlePoseFusion(
+            plan, config.tof, config.state, clearance_mm=config.geometry.width_mm / 2
+        )
+    return EkfPoseFusion(config.state)
 
 
 class StateEstimator:
@@ -44,6 +57,12 @@ class StateEstimator:
         self.odometer = Odometer(motor, cfg)
         self.fusion: PoseFusion = fusion or EkfPoseFusion(cfg)
         self.floor = cfg.initial_floor
+        self.fusion.change_floor(self.floor)
+        # The particle filter reads the walls from the scans itself; the angle and door
+        # modules' outputs come from the same readings and are only added if asked.
+        particles = cfg.fusion == "particles"
+        self._fuse_angles = not particles or cfg.particles.use_wall_angle
+        self._fuse_doors = not particles or cfg.particles.use_doors
         self._anchor_floor = {a.id: f.level for f in plan.floors for a in f.anchors}
         self._recent: deque[OdometryStep] = deque()
         self.angle_from_line_deg: float | None = None
@@ -55,8 +74,13 @@ class StateEstimator:
 
     def place(self, x_mm: float, y_mm: float, heading_deg: float, floor: int) -> None:
         """A known start (the dock in the tea room) or a known arrival (out of the elevator)."""
-        self.floor = floor
+        self._set_floor(floor)
         self.fusion.reset(x_mm, y_mm, heading_deg, 50.0, 5.0)
+
+    def _set_floor(self, floor: int) -> None:
+        if floor != self.floor:
+            self.floor = floor
+            self.fusion.change_floor(floor)
 
     def on_odometry(self, odo: Odometry, now: float) -> bool:
         step = self.odometer.step(odo)
@@ -76,14 +100,22 @@ class StateEstimator:
             return False
         floors = {self._anchor_floor.get(a.anchor_id) for a in fix.anchors} - {None}
         if len(floors) == 1:
-            self.floor = floors.pop()  # type: ignore[assignment]
+            self._set_floor(floors.pop())  # type: ignore[arg-type]
         sigma = self.cfg.uwb_sigma_mm * max(1.0, 50.0 / fix.quality)
         self.stamps["uwb"] = now
         return self.fusion.update_position(fix.x_mm, fix.y_mm, sigma)
 
+    def on_scan(self, scan: RangeScan, now: float) -> bool:
+        used = self.fusion.update_ranges(scan)
+        if used:
+            self.stamps["ranges"] = now
+        return used
+
     def on_angle(self, angle: AngleEstimate, now: float) -> bool:
         self.angle_from_line_deg = angle.angle_deg
         self.stamps["angle"] = now
+        if not self._fuse_angles:
+            return False
         used = self.fusion.update_heading(angle.heading_deg, angle.sigma_deg)
         # Each wall distance fixes the position across the hallway.
         floor = self.plan.floor(self.floor)
@@ -103,7 +135,7 @@ class StateEstimator:
         if door.room is not None:
             self.last_door_room = door.room
         self.stamps["door"] = now
-        if door.along_correction_mm is None:
+        if door.along_correction_mm is None or not self._fuse_doors:
             return False
         return self.fusion.update_offset(
             door.travel_heading_deg, door.along_correction_mm, self.cfg.door_sigma_mm
@@ -127,18 +159,34 @@ class StateEstimator:
 
     def pose(self) -> PoseEstimate:
         x, y, heading = self.fusion.pose()
-        sx, sy, sh = self.fusion.sigmas()
+        cov = self.fusion.covariance()
+        summary = self.fusion.summary()
         return PoseEstimate(
             x_mm=x,
             y_mm=y,
             heading_deg=heading,
             floor=self.floor,
-            sigma_x_mm=sx,
-            sigma_y_mm=sy,
-            sigma_heading_deg=sh,
+            sigma_x_mm=math.sqrt(max(cov[0, 0], 0.0)),
+            sigma_y_mm=math.sqrt(max(cov[1, 1], 0.0)),
+            sigma_heading_deg=math.sqrt(max(cov[2, 2], 0.0)),
+            cov_xy_mm2=float(cov[0, 1]),
             speed_mm_s=self._average(lambda s: s.distance_mm),
             yaw_rate_dps=self._average(lambda s: s.heading_change_deg),
             initialised=self.fusion.initialised,
+            particles=None if summary is None else summary.count,
+            effective_sample_size=None if summary is None else summary.effective_sample_size,
+        )
+
+    def cloud(self, points: int) -> ParticleCloud | None:
+        """A weighted sample of the particles for the map (None for the Kalman filter)."""
+        samples = self.fusion.cloud(points)
+        if samples is None:
+            return None
+        return ParticleCloud(
+            floor=self.floor,
+            x_mm=[round(float(v), 1) for v in samples[:, 0]],
+            y_mm=[round(float(v), 1) for v in samples[:, 1]],
+            heading_deg=[round(float(v), 1) for v in samples[:, 2]],
         )
 
     def current(self, now: float) -> CurrentState:

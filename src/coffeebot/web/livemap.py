@@ -18,10 +18,21 @@ from pydantic import BaseModel, Field
 
 from coffeebot.board import BoardError, BoardView, Envelope
 from coffeebot.config import TofSensorConfig
-from coffeebot.messages import RANGE_SCAN, RangeScan, ReadingStatus
+from coffeebot.messages import (
+    CURRENT_STATE,
+    PARTICLES,
+    RANGE_SCAN,
+    CurrentState,
+    ParticleCloud,
+    RangeScan,
+    ReadingStatus,
+)
 
 NO_TARGET_RAY_MM = 300.0
 """Readings without a distance are drawn as a short stub so the sensor's state still shows."""
+
+ELLIPSE_SCALE = math.sqrt(5.991)
+"""The drawn ellipse holds the position with 95 % probability (chi-square, 2 degrees)."""
 
 
 class MapPose(BaseModel):
@@ -55,7 +66,27 @@ class RayShape(BaseModel):
     y2_mm: float
 
 
-Shape = Annotated[RobotShape | RayShape, Field(discriminator="kind")]
+class CloudShape(BaseModel):
+    """Particles of the particle filter: x, y pairs in floor-plan mm."""
+
+    kind: Literal["cloud"] = "cloud"
+    points: list[tuple[float, float]]
+
+
+class EllipseShape(BaseModel):
+    """The estimate's 95 % position ellipse: centre, semi-axes and the first axis' angle."""
+
+    kind: Literal["ellipse"] = "ellipse"
+    x_mm: float
+    y_mm: float
+    rx_mm: float
+    ry_mm: float
+    angle_deg: float
+
+
+Shape = Annotated[
+    RobotShape | RayShape | CloudShape | EllipseShape, Field(discriminator="kind")
+]
 
 
 class MapFrame(BaseModel):
@@ -100,9 +131,43 @@ def scan_rays(
     return rays
 
 
+def particle_cloud(
+    envelope: Envelope[Any], pose: MapPose, sensors: Sequence[TofSensorConfig]
+) -> list[CloudShape]:
+    cloud: ParticleCloud = envelope.msg
+    if cloud.floor != pose.floor:
+        return []
+    return [CloudShape(points=list(zip(cloud.x_mm, cloud.y_mm, strict=True)))]
+
+
+def uncertainty_ellipse(
+    envelope: Envelope[Any], pose: MapPose, sensors: Sequence[TofSensorConfig]
+) -> list[EllipseShape]:
+    """The 95 % ellipse of the estimate's x-y covariance (both fusion methods report it)."""
+    state: CurrentState = envelope.msg
+    p = state.pose
+    if not p.initialised or p.floor != pose.floor:
+        return []
+    a, b, c = p.sigma_x_mm**2, p.sigma_y_mm**2, p.cov_xy_mm2
+    mean, half = (a + b) / 2, math.hypot((a - b) / 2, c)
+    return [
+        EllipseShape(
+            x_mm=p.x_mm,
+            y_mm=p.y_mm,
+            rx_mm=ELLIPSE_SCALE * math.sqrt(max(mean + half, 0.0)),
+            ry_mm=ELLIPSE_SCALE * math.sqrt(max(mean - half, 0.0)),
+            angle_deg=math.degrees(0.5 * math.atan2(2 * c, a - b)),
+        )
+    ]
+
+
 Layer = Callable[[Envelope[Any], MapPose, Sequence[TofSensorConfig]], Sequence[Shape]]
 
-LAYERS: dict[str, Layer] = {RANGE_SCAN.name: scan_rays}
+LAYERS: dict[str, Layer] = {
+    RANGE_SCAN.name: scan_rays,
+    PARTICLES.name: particle_cloud,
+    CURRENT_STATE.name: uncertainty_ellipse,
+}
 
 
 def map_frame(

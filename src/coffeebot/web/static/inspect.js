@@ -85,6 +85,16 @@
     ray(s, g) {
       node("line", { class: `ray ${s.status}`, x1: s.x1_mm, y1: s.y1_mm, x2: s.x2_mm, y2: s.y2_mm }, g);
     },
+    cloud(s, g) {
+      const c = node("g", { class: "particles" }, g);
+      for (const [x, y] of s.points) node("circle", { cx: x, cy: y, r: 35 }, c);
+    },
+    ellipse(s, g) {
+      node("ellipse", {
+        class: "uncertainty", rx: s.rx_mm, ry: s.ry_mm,
+        transform: `translate(${s.x_mm} ${s.y_mm}) rotate(${s.angle_deg})`,
+      }, g);
+    },
   };
 
   async function showMap(map) {
@@ -92,9 +102,10 @@
     if (floor === undefined) return;
     if (floor !== mapFloor) await loadFloor(floor);
     const svg = el("map").querySelector("svg");
-    if (!svg.getAttribute("viewBox") && map.shapes.length) {
-      const xs = map.shapes.flatMap((s) => (s.kind === "ray" ? [s.x1_mm, s.x2_mm] : [s.x_mm]));
-      const ys = map.shapes.flatMap((s) => (s.kind === "ray" ? [s.y1_mm, s.y2_mm] : [s.y_mm]));
+    const placed = map.shapes.filter((s) => s.kind === "ray" || s.kind === "robot");
+    if (!svg.getAttribute("viewBox") && placed.length) {
+      const xs = placed.flatMap((s) => (s.kind === "ray" ? [s.x1_mm, s.x2_mm] : [s.x_mm]));
+      const ys = placed.flatMap((s) => (s.kind === "ray" ? [s.y1_mm, s.y2_mm] : [s.y_mm]));
       const x0 = Math.min(...xs) - 2000, y0 = Math.min(...ys) - 2000;
       svg.setAttribute("viewBox", `${x0} ${y0} ${Math.max(...xs) + 2000 - x0} ${Math.max(...ys) + 2000 - y0}`);
     }
