@@ -30,11 +30,10 @@ DELIVERIES = [
     "floor3-walker",  # 308 via the elevator, a person walking towards the robot
 ]
 EKF_DELIVERIES = [
-    "floor2-box-in-lane",  # the lane left and regained: the estimate steers it
     "floor3-elevator",  # turns in the car, a ride, another floor
 ]
-"""With ``[state] fusion = "ekf"`` (the default is the particle filter): the two scenarios
-that depend most on the estimate. All six run with each fusion in
+"""With ``[state] fusion = "ekf"`` (the default is the particle filter): the scenario that
+depends most on the estimate. All six run with each fusion in
 ``bench/deliveries_by_fusion.py`` (a second run of all six here would double the suite's
 longest part)."""
 AT_THE_DOOR_MM = 100.0
