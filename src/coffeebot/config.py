@@ -279,6 +279,18 @@ class TrackingConfig(Section):
         le=SPEED_MM_S,
         description="slower over the ground is standing (noise, a sliding glance)",
     )
+    max_mover_speed_mm_s: float = Field(
+        3000.0,
+        gt=0,
+        le=SPEED_MM_S,
+        description="faster over the ground is no one: readings jumping between things",
+    )
+    max_sigma_mm: float = Field(
+        60.0,
+        gt=0,
+        le=DISTANCE_MM,
+        description="readings reporting a larger sigma (blends of near and far) are not tracked",
+    )
     corridor_margin_mm: float = Field(
         100.0,
         ge=0,

@@ -174,3 +174,24 @@ def test_someone_walking_towards_the_robot_has_it_standing_before_they_meet() ->
     stopping_s = cfg.reaction_latency_s + 500.0 / cfg.braking_mm_s2
     assert first_slowed_at is not None
     assert first_slowed_at > stop_distance_mm(cfg, 500.0) + walk * stopping_s
+
+
+def test_blends_and_impossible_speeds_are_no_movers() -> None:
+    """A reading with a large sigma (near and far returns averaged) is not tracked, and a
+    return that jumps faster than anyone runs indoors is no one."""
+    tracker = ReturnTracker(TOED_OUT, CONFIG.tracking)
+    blended = scan_of([(1500.0, 0.0)], 0.0, walls=False)
+    blended = blended.model_copy(
+        update={
+            "readings": [
+                r.model_copy(update={"sigma_mm": CONFIG.tracking.max_sigma_mm + 1})
+                for r in blended.readings
+            ]
+        }
+    )
+    assert tracker.sightings(blended) == []
+    for k in range(12):  # a return sliding sideways at 4 m/s in front of a standing robot
+        t = k * DT
+        tracker.update(scan_of([(1500.0, -400.0 + 4000.0 * t)], t, walls=False), 0.0, 0.0)
+    assert any(t.speed_mm_s > CONFIG.tracking.max_mover_speed_mm_s for t in tracker.tracks)
+    assert tracker.movers() == []

@@ -117,8 +117,9 @@ class ReturnTracker:
         self._last_t: float | None = None
 
     def sightings(self, scan: RangeScan, skip: Collection[int] = ()) -> list[Sighting]:
-        """Each healthy valid reading within ``max_range_mm`` as a point in the odometry frame,
-        but those of the sensors in ``skip``."""
+        """Each healthy valid reading within ``max_range_mm`` and ``max_sigma_mm`` as a point
+        in the odometry frame, but those of the sensors in ``skip``: a reading with a large
+        sigma is a blend of near and far returns, a position that jumps between them."""
         found = []
         for reading in scan.readings:
             sensor = self.sensors.get(reading.sensor)
@@ -129,6 +130,7 @@ class ReturnTracker:
                 or reading.status is not ReadingStatus.VALID
                 or reading.distance_mm is None
                 or reading.distance_mm > self.cfg.max_range_mm
+                or (reading.sigma_mm or 0.0) > self.cfg.max_sigma_mm
             ):
                 continue
             d = float(reading.distance_mm)
@@ -224,11 +226,14 @@ class ReturnTracker:
         self._next_id += 1
 
     def movers(self) -> list[Track]:
-        """Confirmed tracks moving faster than ``mover_speed_mm_s`` over the ground."""
+        """Confirmed tracks moving over the ground faster than ``mover_speed_mm_s`` and no
+        faster than anyone walks or runs indoors (faster is readings jumping between things)."""
+        cfg = self.cfg
         return [
             t
             for t in self.tracks
-            if t.hits >= self.cfg.confirm_hits and t.speed_mm_s >= self.cfg.mover_speed_mm_s
+            if t.hits >= cfg.confirm_hits
+            and cfg.mover_speed_mm_s <= t.speed_mm_s <= cfg.max_mover_speed_mm_s
         ]
 
     def lost_near(
