@@ -1092,11 +1092,14 @@ def _run_job(job: tuple[str, tuple[Any, ...], float]) -> tuple[str, dict[str, An
         return "failed", {"run": f"{kind} {args}", "error": f"{type(exc).__name__}: {exc}"}
 
 
-def jobs(selected: Sequence[tuple[str, float]], extras: bool) -> list[Job]:
-    """The case runs, and (``extras``) the hallway, idle and held runs."""
+def jobs(
+    selected: Sequence[tuple[str, float]], extras: bool, hallway_speeds: Sequence[float]
+) -> list[Job]:
+    """The case runs, and (``extras``) the hallway (at ``hallway_speeds``), idle and held
+    runs."""
     found: list[Job] = [("case", (name, speed)) for name, speed in selected]
     if extras:
-        found += [("hallway", (level, v)) for level in (2, 3) for v in (500.0, 1000.0)]
+        found += [("hallway", (level, v)) for level in (2, 3) for v in hallway_speeds]
         found += [("idle", (where,)) for where in IDLE_PLACES]
         found += [("held", (name,)) for name in HELD]
     return found
@@ -1312,8 +1315,10 @@ def load_average() -> list[float]:
 def select(args: argparse.Namespace) -> list[Job]:
     if args.quick:
         return [("case", c) for c in QUICK] + [("held", (next(iter(HELD)),))]
-    speeds = args.speeds or robot_speeds(load()[0])
-    found = jobs([(c.name, float(v)) for c in cases() for v in speeds], extras=True)
+    config = load()[0]
+    speeds = args.speeds or robot_speeds(config)
+    cruise = {config.motion.cruise_speed_mm_s, config.motion.max_speed_mm_s}
+    found = jobs([(c.name, float(v)) for c in cases() for v in speeds], True, sorted(cruise))
     if args.case:
         found = [j for j in found if any(text in f"{j[0]} {j[1][0]}" for text in args.case)]
     return found
