@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
+import functools
 import json
 import logging
 import os
@@ -167,13 +168,13 @@ def _check_hardware(config: RobotConfig, args: argparse.Namespace) -> int:
             except ValueError as exc:  # an unknown fault
                 print(f"coffeebot: {exc}", file=sys.stderr)
                 return 2
-            results = run_checks(sim_config, bus)
+            results = run_checks(sim_config, lambda: bus)
     else:
-        bus = open_i2c_bus(config.i2c.bus)
-        try:
-            results = run_checks(config, bus, kernel_hz=kernel_bus_hz(config.i2c.bus))
-        finally:
-            bus.close()
+        results = run_checks(
+            config,
+            functools.partial(open_i2c_bus, config.i2c.bus),
+            kernel_hz=kernel_bus_hz(config.i2c.bus),
+        )
     ok = all(r.ok for r in results)
     if args.json:
         print(json.dumps({"ok": ok, "results": [asdict(r) for r in results]}, indent=2))
