@@ -127,6 +127,18 @@ async def test_rate_limit_per_client(client: TestClient) -> None:
     assert form.status == 429
 
 
+@pytest.mark.parametrize("path", ["/api/orders", "/orders"])
+async def test_refused_orders_do_not_use_up_the_rate_limit(client: TestClient, path: str) -> None:
+    for _ in range(8):
+        if path == "/orders":
+            refused = await client.post(path, data={**ORDER, "name": ""})
+        else:
+            refused = await client.post(path, json={**ORDER, "name": ""})
+        assert refused.status == 422
+    accepted = await client.post("/api/orders", json=ORDER)
+    assert accepted.status == 201, await accepted.text()
+
+
 @pytest.mark.parametrize(
     ("method", "path", "body"),
     [
@@ -261,7 +273,8 @@ async def test_form_errors_escape_what_was_typed(client: TestClient) -> None:
     assert response.status == 422
     html = await response.text()
     assert "<script>" not in html
-    assert "unknown room" in html
+    assert "&lt;script&gt;" in html  # the notes as typed, escaped
+    assert "Please pick your office." in html
 
 
 async def test_form_submission_redirects_to_the_status_page(client: TestClient) -> None:
@@ -338,3 +351,24 @@ async def test_order_errors_become_http_answers_in_one_place(
     assert (await client.get("/orders/abc")).status == 404  # the page, not JSON
     listed = await client.get("/api/orders", headers=OPERATOR)
     assert listed.status == 200 and await listed.json() == []
+
+
+async def test_the_form_says_what_to_fix_in_plain_words(client: TestClient) -> None:
+    response = await client.post("/orders", data={"drink": "latte", "name": " ", "notes": ""})
+    assert response.status == 422
+    page = await response.text()
+    assert "Please tell us your name" in page and "Please pick your office." in page
+    assert "String should" not in page and "Field required" not in page
+    too_long = await client.post("/orders", data={**ORDER, "name": "x" * 41})
+    assert "Please keep your name to 40 characters." in await too_long.text()
+
+
+async def test_the_form_preselects_no_office_and_lets_the_browser_check_it(
+    client: TestClient,
+) -> None:
+    page = await (await client.get("/")).text()
+    assert "novalidate" not in page
+    room = page[page.index('<select name="room" required>') :]
+    room = room[: room.index("</select>")]
+    assert '<option value="" selected disabled>Choose your office' in room
+    assert room.count("selected") == 1

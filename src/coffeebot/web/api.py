@@ -72,12 +72,12 @@ def operator_only(request: web.Request) -> None:
 
 @routes.post("/api/orders")
 async def create_order(request: web.Request) -> web.Response:
-    check_rate(request)
     body = await request.read()
     try:
         new = NewOrder.model_validate_json(body, context=order_rules(request))
     except ValidationError as exc:
         return validation_error(exc, "order")
+    check_rate(request)  # only orders that would be placed count against the limit
     order = await request.app[DEPS].orders.place(new, client_key(request))
     response = order_json(order, status=201)
     response.headers["Location"] = f"/api/orders/{order.id}"

@@ -16,24 +16,13 @@ import jinja2
 from aiohttp import web
 from pydantic import ValidationError
 
-from coffeebot.messages import OrderStatus
 from coffeebot.store import NewOrder
 from coffeebot.web.api import ORDER_ID, check_rate, order_rules
-from coffeebot.web.context import DEPS, TEMPLATES, client_key, field_errors
+from coffeebot.web.context import DEPS, TEMPLATES, client_key
 from coffeebot.web.graph import module_graph
+from coffeebot.web.wording import STATUS_TEXT, form_errors
 
 routes = web.RouteTableDef()
-
-STATUS_TEXT: dict[OrderStatus, str] = {
-    OrderStatus.QUEUED: "Waiting in the queue",
-    OrderStatus.PREPARING: "Being prepared in the tea room",
-    OrderStatus.ON_THE_WAY: "On the way",
-    OrderStatus.WAITING_FOR_ELEVATOR: "Waiting for the elevator",
-    OrderStatus.ARRIVED: "At your door",
-    OrderStatus.DELIVERED: "Delivered, enjoy!",
-    OrderStatus.CANCELLED: "Cancelled",
-    OrderStatus.FAILED: "Could not be delivered",
-}
 
 
 def templates() -> jinja2.Environment:
@@ -79,12 +68,12 @@ async def index(request: web.Request) -> web.Response:
 @routes.post("/orders")
 async def submit_order(request: web.Request) -> web.StreamResponse:
     """The form without JavaScript: same model, same rate limit as ``POST /api/orders``."""
-    check_rate(request)
     form = {k: v for k, v in (await request.post()).items() if isinstance(v, str)}
     try:
         new = NewOrder.model_validate(form, context=order_rules(request))
     except ValidationError as exc:
-        return order_form(request, values=form, errors=field_errors(exc), status=422)
+        return order_form(request, values=form, errors=form_errors(exc), status=422)
+    check_rate(request)
     order = await request.app[DEPS].orders.place(new, client_key(request))
     raise web.HTTPSeeOther(f"/orders/{order.id}")
 
