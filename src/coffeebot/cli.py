@@ -57,6 +57,12 @@ def _positive(text: str) -> float:
     return value
 
 
+def default_state_dir() -> Path:
+    """The demo's orders: ``$XDG_STATE_HOME/coffeebot/sim`` (``~/.local/state/...``)."""
+    root = os.environ.get("XDG_STATE_HOME") or Path.home() / ".local" / "state"
+    return Path(root) / "coffeebot" / "sim"
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="coffeebot", description="Software of an indoor coffee-delivery robot."
@@ -73,6 +79,15 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--speed", type=_positive, default=1.0, help="times real time (default 1)")
     sim.add_argument("--host", default="127.0.0.1", help="web UI address (default 127.0.0.1)")
     sim.add_argument("--port", type=int, default=8080, help="web UI port (default 8080)")
+    sim.add_argument(
+        "--state-dir",
+        type=Path,
+        default=default_state_dir(),
+        help="where the demo keeps its orders across restarts (default %(default)s)",
+    )
+    sim.add_argument(
+        "--fresh", action="store_true", help="start with an empty queue that is not kept"
+    )
     check = sub.add_parser("check-hardware", help="probe every device once and print a table")
     _add_common(check)
     check.add_argument("--sim", action="store_true", help="probe the simulated buses instead")
@@ -106,7 +121,10 @@ async def _sim(config: RobotConfig, plan: FloorPlan, args: argparse.Namespace) -
         return [] if duration is None else [StopAfter(rt, duration)]
 
     setup = demo_setup(plan, args.speed)
-    async with build_sim(config, plan, setup, extra, web=not args.headless) as (rt, _):
+    state_dir = None if args.fresh else args.state_dir
+    if state_dir is not None:
+        log.info("orders kept in %s (--fresh for an empty queue)", state_dir)
+    async with build_sim(config, plan, setup, extra, not args.headless, state_dir) as (rt, _):
         await serve(rt, args.record)
 
 

@@ -40,10 +40,12 @@ async def build_sim(
     setup: SimSetup,
     extra: SimExtraModules | None = None,
     web: bool = True,
+    state_dir: Path | None = None,
 ) -> AsyncIterator[tuple[Runtime, Simulation]]:
     """The daemon on the simulated robot, and its simulation; the devices run while the
-    context is open and the order store lives in a temporary directory (each run starts with
-    an empty queue)."""
+    context is open. The order store lives in ``state_dir`` (the demo's orders survive a
+    restart), or without one in a temporary directory (each run starts with an empty
+    queue)."""
     clock = ScaledClock(setup.speed)
     world = World(
         plan,
@@ -64,7 +66,11 @@ async def build_sim(
         sigma_y_mm=50.0,
         sigma_heading_deg=5.0,
     )
-    with tempfile.TemporaryDirectory(prefix="coffeebot-sim-") as tmp:
+    with contextlib.ExitStack() as stack:
+        if state_dir is None:
+            state_dir = Path(
+                stack.enter_context(tempfile.TemporaryDirectory(prefix="coffeebot-sim-"))
+            )
         sim.start()
         try:
             yield (
@@ -73,7 +79,7 @@ async def build_sim(
                     plan,
                     clock=clock,
                     open_i2c=lambda: sim.tof.bus,
-                    store_path=Path(tmp) / "orders.sqlite3",
+                    store_path=state_dir / "orders.sqlite3",
                     start=start,
                     before=[WorldModule(sim)],
                     elevator=SimElevatorLink(sim),

@@ -41,8 +41,22 @@ class WebModule(Module):
             host, port = runner.addresses[0][:2]
             self.url = f"http://{host}:{port}"
             ctx.log.info("serving", extra={"url": self.url})
+            self._say_operator_token(ctx)
             self.started.set()
             await asyncio.Event().wait()
         finally:
             self.started.clear()
             await runner.cleanup()
+
+    def _say_operator_token(self, ctx: ModuleContext) -> None:
+        """The first thing an operator needs to know in the terminal: can they act at all."""
+        env = self.deps.config.operator_token_env
+        if self.deps.operator_token:
+            ctx.log.info("operator actions on: the inspector asks for the token in $%s", env)
+        else:
+            ctx.log.warning(
+                "operator actions off: no operator token; set one with "
+                "`export %s=<a secret>` before starting, then enter it on %s/inspect",
+                env,
+                self.url,
+            )
