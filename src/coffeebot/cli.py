@@ -157,7 +157,15 @@ def _sim_command(config: RobotConfig, args: argparse.Namespace) -> int:
         print(text)
     else:
         args.report.write_text(text + "\n")
-        log.info("report written", extra={"path": str(args.report)})
+        log.info(
+            "report written to %s: %s; %d safety stops; %.1f simulated s at %sx real time",
+            args.report,
+            report.ended,
+            report.safety_stops,
+            report.sim_time_s,
+            report.real_time_factor,
+            extra={"path": str(args.report), "real_time_factor": report.real_time_factor},
+        )
     return 0
 
 

@@ -132,4 +132,6 @@ def render_command(args: argparse.Namespace) -> int:
         print(f"coffeebot: {args.file}: {exc.args[0]}", file=sys.stderr)
         return 2
     args.output.write_text(svg, encoding="utf-8")
+    drawn = args.floor or [f.level for f in plan.floors]
+    print(f"{args.output}: {plan.name or 'floor plan'}, floor {', '.join(map(str, drawn))}")
     return 0

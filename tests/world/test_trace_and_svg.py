@@ -81,9 +81,12 @@ def _args(*argv: str) -> argparse.Namespace:
     return parser.parse_args(list(argv))
 
 
-def test_render_command_writes_one_floor(tmp_path: Path) -> None:
+def test_render_command_writes_one_floor(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     out = tmp_path / "floor3.svg"
     assert render_command(_args(str(CS_BUILDING), "-o", str(out), "--floor", "3")) == 0
+    assert capsys.readouterr().out == f"{out}: CS Building, floor 3\n"
     text = out.read_text()
     assert 'id="floor-3"' in text and 'id="floor-2"' not in text
 

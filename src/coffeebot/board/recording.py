@@ -229,9 +229,13 @@ class Recorder:
             await pump
         await asyncio.to_thread(self._finish)
         log.info(
-            "recording closed: %s",
+            "recording closed: %s: %d messages written, %d lost; %d sensor values skipped "
+            "(latest-only topics keep the newest value, the recorder takes what is there)",
             self.path,
-            extra={"written": self.written, "lost": self.lost, "missed": self.missed},
+            self.written,
+            self.lost,
+            self.missed,
+            extra={"written": self.written, "lost": self.lost, "skipped_latest": self.missed},
         )
 
     async def __aenter__(self) -> Recorder:
