@@ -360,6 +360,25 @@ class WebConfig(Section):
     order_burst: int = Field(5, ge=1, description="orders one client may place back to back")
     order_refill_s: float = Field(12.0, gt=0, description="one more order allowed per this")
     stream_period_s: float = Field(0.5, gt=0, description="inspector stream frame interval")
+    progress_period_s: float = Field(
+        2.0, gt=0, description="a customer's page hears how its delivery goes this often"
+    )
+    eta_speed_mm_s: float = Field(
+        300.0, gt=0, description="average delivery speed for the arrival estimate"
+    )
+    eta_elevator_ride_s: float = Field(
+        60.0, ge=0, description="one elevator ride (call, ride, exit) in the estimate"
+    )
+    stale_after_s: dict[str, float] = Field(
+        {
+            "tof/scan": 0.5,
+            "safety/collision": 0.5,
+            "state/current": 1.0,
+            "motor/odometry": 1.0,
+            "uwb/fix": 2.0,
+        },
+        description="topics that must keep coming: an operator alert when one is older",
+    )
 
 
 class StoreConfig(Section):

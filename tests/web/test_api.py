@@ -169,7 +169,11 @@ async def test_no_configured_token_refuses_everyone(
     deps = dataclasses.replace(web_deps(board, orders), operator_token=None)
     client = await aiohttp_client(create_app(deps, board))
     response = await client.post("/api/estop", json={"engaged": True}, headers=OPERATOR)
-    assert response.status == 401
+    # Not "token required" as for a wrong token: no token would do, and it says how to set one.
+    assert response.status == 403
+    error = (await response.json())["error"]
+    assert error.startswith("operator actions are off: no operator token is set")
+    assert "COFFEEBOT_OPERATOR_TOKEN" in error
     assert board.latest(ESTOP) is None
 
 
@@ -252,7 +256,48 @@ async def test_order_events_follow_the_lifecycle(client: TestClient, board: Boar
         for status in (OrderStatus.ON_THE_WAY, OrderStatus.ARRIVED, OrderStatus.DELIVERED):
             board.publish(DELIVERY_STATUS, DeliveryUpdate(order_id=order["id"], status=status))
             await wait_for_status(stream, status.value)
-        assert (await stream.content.read()).strip() == b""  # it ends with the order
+        # It ends with the order: the last word is the timeline of the delivered order.
+        rest = (await stream.content.read()).decode().strip().splitlines()
+        assert rest[0] == "event: timeline" and len(rest) == 2
+        assert json.loads(rest[1].removeprefix("data: "))["final"] is True
+
+
+async def test_the_status_stream_sends_the_timeline_in_plain_words(
+    client: TestClient, board: Board
+) -> None:
+    order = await place(client)
+    async with client.get(f"/api/orders/{order['id']}/events") as stream:
+        timeline = await next_timeline(stream)
+        assert timeline["headline"] == "Being prepared in the tea room"
+        steps = {s["key"]: s["state"] for s in timeline["steps"]}
+        assert steps == {
+            "queued": "done",
+            "preparing": "current",
+            "on_the_way": "todo",
+            "arrived": "todo",
+            "delivered": "todo",
+        }
+        update = DeliveryUpdate(
+            order_id=order["id"], status=OrderStatus.ARRIVED, detail="at the door of 210 (-7 mm)"
+        )
+        board.publish(DELIVERY_STATUS, update)
+        while (timeline := await next_timeline(stream))["status"] != "arrived":
+            pass
+    assert timeline["detail"] == "Please take your latte from the robot, then press the button."
+    assert "mm" not in json.dumps(timeline)
+    assert 170 < timeline["pickup_left_s"] <= 180
+    snapshot = await client.get(f"/api/orders/{order['id']}/timeline")
+    assert (await snapshot.json())["headline"] == "At your door"
+
+
+async def next_timeline(stream: Any) -> dict[str, Any]:
+    named = False
+    async for line in stream.content:
+        if line.startswith(b"event: timeline"):
+            named = True
+        elif named and line.startswith(b"data: "):
+            return dict(json.loads(line[6:]))
+    raise AssertionError("stream ended without a timeline")
 
 
 async def test_xss_in_name_and_notes_is_escaped(client: TestClient) -> None:
