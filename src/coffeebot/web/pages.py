@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from itertools import groupby
+from pathlib import Path
 from typing import Any
 
 import jinja2
@@ -18,11 +19,13 @@ from pydantic import ValidationError
 
 from coffeebot.store import NewOrder
 from coffeebot.web.api import ORDER_ID, check_rate, order_rules
-from coffeebot.web.context import DEPS, TEMPLATES, client_key
+from coffeebot.web.context import DEPS, TEMPLATES, TIMELINES, client_key
 from coffeebot.web.graph import module_graph
 from coffeebot.web.wording import STATUS_TEXT, form_errors
 
 routes = web.RouteTableDef()
+
+FAVICON = Path(__file__).parent / "static" / "favicon.svg"
 
 
 def templates() -> jinja2.Environment:
@@ -81,7 +84,14 @@ async def submit_order(request: web.Request) -> web.StreamResponse:
 @routes.get(f"/orders/{ORDER_ID}")
 async def order_page(request: web.Request) -> web.Response:
     order = await request.app[DEPS].orders.get(request.match_info["order_id"])
-    return render(request, "order.html", order=order)
+    timeline = request.app[TIMELINES].timeline(order)
+    return render(request, "order.html", order=order, timeline=timeline)
+
+
+@routes.get("/favicon.ico")
+async def favicon(request: web.Request) -> web.FileResponse:
+    """Browsers ask for it on every page; the same cup the pages link to."""
+    return web.FileResponse(FAVICON, headers={"Content-Type": "image/svg+xml"})
 
 
 @routes.get("/inspect")
@@ -92,6 +102,7 @@ async def inspect_page(request: web.Request) -> web.Response:
         "length_mm": deps.geometry.length_mm,
         "width_mm": deps.geometry.width_mm,
         "floors": floors,
+        "status_text": {s.value: t for s, t in STATUS_TEXT.items()},
     }
     return render(request, "inspect.html", robot=robot)
 
