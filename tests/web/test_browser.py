@@ -410,8 +410,11 @@ async def test_the_map_draws_cones_route_ellipse_and_legend(
     await expect(cones).to_have_count(8)
     await expect(page.locator("#map polygon.cone.hit")).to_have_count(7)
     await expect(page.locator("#map polygon.cone.clear")).to_have_count(1)
-    await expect(page.locator("#map text.reading")).to_have_count(7)
-    await expect(page.locator("#map text.reading").first).to_have_text(re.compile(r"^\d+ mm$"))
+    await expect(page.locator("#map circle.hit-point")).to_have_count(7)
+    readings = page.locator("#readings li")
+    await expect(readings).to_have_text(
+        [f"tof{i}: {600 + 40 * i} mm" for i in range(7)] + ["tof7: nothing in range"]
+    )
     await expect(page.locator("#map ellipse.uncertainty")).to_have_count(1)
     await expect(page.locator("#map polyline.path.route")).to_have_count(1)
     await expect(page.locator("#map text.goal-label")).to_have_text("207")
@@ -419,6 +422,7 @@ async def test_the_map_draws_cones_route_ellipse_and_legend(
     # A sensor that stops answering turns red and raises an alert.
     served.robot.faulty_sensor = 3
     await expect(page.locator("#map polygon.cone.fault")).to_have_count(1)
+    await expect(page.locator("#readings li.fault")).to_have_text("tof3: no reading (bus error)")
     await expect(page.locator("#alerts li.warning")).to_contain_text(["Sensor tof3"])
     served.board.publish(ROUTE, PlannedRoute(to="tea room"))
 

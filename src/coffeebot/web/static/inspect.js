@@ -182,8 +182,7 @@
       node("title", {}, c).textContent = s.text;
       if (s.reach === "hit") {
         const a = rad(s.heading_deg);
-        const far = s.range_mm + 180;
-        label(g, s.x_mm + far * Math.cos(a), s.y_mm + far * Math.sin(a), s.text.split(": ")[1], "reading");
+        node("circle", { class: "hit-point", cx: s.x_mm + s.range_mm * Math.cos(a), cy: s.y_mm + s.range_mm * Math.sin(a), r: 45 }, g);
       }
     },
     ellipse(s, g) {
@@ -215,6 +214,19 @@
     overlay.replaceChildren(...g.childNodes);
     fitView(svg, shapes);
     el("map-caption").textContent = map.caption;
+    showReadings(shapes.filter((s) => s.kind === "cone"));
+  }
+
+  // Side by side on the map the numbers would overlap: they are listed under it instead.
+  function showReadings(cones) {
+    const chips = [...cones].sort((a, b) => a.sensor - b.sensor).map((c) => {
+      const li = document.createElement("li");
+      li.className = c.reach;
+      li.dataset.sensor = c.sensor;
+      li.textContent = c.text;
+      return li;
+    });
+    el("readings").replaceChildren(...chips);
   }
 
   const select = el("floor-select");
