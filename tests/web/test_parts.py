@@ -32,12 +32,12 @@ from coffeebot.messages import (
     RouteLeg,
 )
 from coffeebot.modules.orders import OrdersModule
+from coffeebot.sensor_view import ConeShape
 from coffeebot.store import OrderStore
 from coffeebot.web import WebModule
 from coffeebot.web.context import RateLimiter
 from coffeebot.web.graph import module_graph
 from coffeebot.web.livemap import (
-    ConeShape,
     EllipseShape,
     GoalShape,
     MapPose,

@@ -6,8 +6,8 @@ the robot poses (from a pose source the daemon provides) and one layer per board
 by the topic's name in :data:`LAYERS`. A topic that is not declared on the board, or has not
 published yet, simply draws nothing, so adding a layer is one function and one entry there.
 
-Sensor cones are drawn from each sensor's configured mount, yaw and field of view, so a
-change of layout in the robot description shows on the map as it is.
+Sensor cones (:mod:`coffeebot.sensor_view`) are drawn from each sensor's configured mount,
+yaw and field of view, so a change of layout in the robot description shows as it is.
 """
 
 from __future__ import annotations
@@ -33,24 +33,12 @@ from coffeebot.messages import (
     CurrentState,
     MotionStatus,
     PlannedRoute,
-    RangeReading,
     RangeScan,
-    ReadingStatus,
 )
+from coffeebot.sensor_view import ConeShape, sensor_cones
 
 ELLIPSE_SCALE = math.sqrt(5.991)
 """The drawn ellipse holds the position with 95 % probability (chi-square, 2 degrees)."""
-
-CLEAR = frozenset(
-    {
-        ReadingStatus.OUT_OF_BOUNDS,
-        ReadingStatus.NO_TARGET,
-        ReadingStatus.SIGNAL_FAIL,
-        ReadingStatus.SIGMA_FAIL,
-    }
-)
-"""Statuses of a sensor that ranged and found nothing it could measure: drawn as a clear
-cone out to the sensor's range, not as a fault."""
 
 DETOUR_LEAD_MM = 600.0
 """How far ahead of the robot the drawn detour reaches its lane, and beyond the obstacle it
@@ -76,23 +64,6 @@ class RobotShape(BaseModel):
     x_mm: float
     y_mm: float
     heading_deg: float
-
-
-class ConeShape(BaseModel):
-    """One sensor's field of view from its mount, as far as its reading reaches."""
-
-    kind: Literal["cone"] = "cone"
-    sensor: int
-    reach: Literal["hit", "clear", "fault"]
-    """``hit``: something at ``range_mm``; ``clear``: nothing in range; ``fault``: no reading."""
-    status: str
-    text: str
-    """The reading in words, for the cone's label and tooltip."""
-    x_mm: float
-    y_mm: float
-    heading_deg: float
-    half_fov_deg: float
-    range_mm: float
 
 
 class EllipseShape(BaseModel):
@@ -145,53 +116,11 @@ class MapContext:
     board: BoardView
 
 
-def to_floor(pose: MapPose, x_mm: float, y_mm: float) -> tuple[float, float]:
-    """A robot-frame point (x forward, y left) in floor-plan coordinates."""
-    h = math.radians(pose.heading_deg)
-    return (
-        pose.x_mm + x_mm * math.cos(h) - y_mm * math.sin(h),
-        pose.y_mm + x_mm * math.sin(h) + y_mm * math.cos(h),
-    )
-
-
-def _reading(reading: RangeReading, max_range_mm: float) -> tuple[str, float, str]:
-    """How far to draw a reading, what it means and its words."""
-    if not reading.healthy:
-        return "fault", 0.0, f"no reading ({reading.status.value.replace('_', ' ')})"
-    if reading.status is ReadingStatus.VALID and reading.distance_mm is not None:
-        return "hit", float(reading.distance_mm), f"{reading.distance_mm} mm"
-    if reading.status is ReadingStatus.TOO_CLOSE:
-        return "hit", float(reading.distance_mm or 0), "too close to range"
-    if reading.status in CLEAR:
-        return "clear", max_range_mm, "nothing in range"
-    return "fault", 0.0, f"no reading ({reading.status.value.replace('_', ' ')})"
-
-
 def scan_cones(envelope: Envelope[Any], ctx: MapContext) -> list[ConeShape]:
     """One cone per reading from its sensor's mount and field of view."""
     scan: RangeScan = envelope.msg
-    mounts = {s.id: s for s in ctx.sensors}
-    cones = []
-    for reading in scan.readings:
-        mount = mounts.get(reading.sensor)
-        if mount is None:
-            continue
-        x, y = to_floor(ctx.pose, mount.x_mm, mount.y_mm)
-        reach, length, text = _reading(reading, ctx.max_range_mm)
-        cones.append(
-            ConeShape(
-                sensor=reading.sensor,
-                reach=reach,  # type: ignore[arg-type]  # one of the three, by _reading
-                status=reading.status.value,
-                text=f"tof{reading.sensor}: {text}",
-                x_mm=x,
-                y_mm=y,
-                heading_deg=ctx.pose.heading_deg + mount.yaw_deg,
-                half_fov_deg=mount.fov_deg / 2,
-                range_mm=length,
-            )
-        )
-    return cones
+    p = ctx.pose
+    return sensor_cones(scan.readings, ctx.sensors, p.x_mm, p.y_mm, p.heading_deg, ctx.max_range_mm)
 
 
 def uncertainty_ellipse(envelope: Envelope[Any], ctx: MapContext) -> list[EllipseShape]:
