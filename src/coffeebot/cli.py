@@ -42,6 +42,8 @@ log = logging.getLogger("coffeebot")
 REPO_ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_BOARD = REPO_ROOT / "boards" / "coffeebot-v1.toml"
 DEFAULT_FLOORPLAN = REPO_ROOT / "floorplans" / "cs-building.toml"
+DEFAULT_FOXGLOVE_PORT = 8765
+"""Foxglove's own default for a WebSocket data source."""
 
 
 def _add_common(parser: argparse.ArgumentParser) -> None:
@@ -54,6 +56,13 @@ def _positive(text: str) -> float:
     value = float(text)
     if value <= 0:
         raise argparse.ArgumentTypeError(f"must be positive, got {text}")
+    return value
+
+
+def _port(text: str) -> int:
+    value = int(text)
+    if not 0 <= value <= 65535:
+        raise argparse.ArgumentTypeError(f"a port is 0..65535, got {text}")
     return value
 
 
@@ -103,6 +112,16 @@ def build_parser() -> argparse.ArgumentParser:
     replay.add_argument("--topic", action="append", help="replay only this topic (repeatable)")
     for p in (run, sim, replay):
         p.add_argument("--record", type=Path, metavar="FILE.mcap", help="record the board")
+    for p in (run, sim):
+        p.add_argument(
+            "--foxglove",
+            type=_port,
+            nargs="?",
+            const=DEFAULT_FOXGLOVE_PORT,
+            metavar="PORT",
+            help="serve the board live to Foxglove on the web UI's address "
+            f"(port {DEFAULT_FOXGLOVE_PORT} if not given)",
+        )
     record = sub.add_parser("record", help="inspect a recording")
     record.add_argument("--info", type=Path, metavar="FILE", required=True, help="print summary")
     install = sub.add_parser("install-service", help="install the systemd unit and /etc config")
@@ -125,7 +144,7 @@ async def _sim(config: RobotConfig, plan: FloorPlan, args: argparse.Namespace) -
     if state_dir is not None:
         log.info("orders kept in %s (--fresh for an empty queue)", state_dir)
     async with build_sim(config, plan, setup, extra, not args.headless, state_dir) as (rt, _):
-        await serve(rt, args.record)
+        await serve(rt, args.record, args.foxglove)
 
 
 def _sim_command(config: RobotConfig, args: argparse.Namespace) -> int:
@@ -150,6 +169,7 @@ def _sim_command(config: RobotConfig, args: argparse.Namespace) -> int:
             speed=args.speed,
             web=not args.headless,
             record=args.record,
+            foxglove_port=args.foxglove,
         )
     )
     text = report.model_dump_json(indent=2)
@@ -269,7 +289,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "sim":
             return _sim_command(config, args)
         robot = build_robot(config, load_floorplan(args.floorplan))
-        asyncio.run(serve(robot, args.record))
+        asyncio.run(serve(robot, args.record, args.foxglove))
     except (ConfigError, SelfCheckFailed, OSError) as exc:
         print(f"coffeebot: {exc}", file=sys.stderr)
         return 2 if isinstance(exc, ConfigError) else 1
