@@ -38,18 +38,19 @@ from coffeebot.messages import (
     AngleEstimate,
     Odometry,
     PoseEstimate,
-    RangeReading,
     RangeScan,
     SafetyState,
 )
+from coffeebot.navigation.control import lane_heading_deg, turn_rate_dps, wheel_speeds
 from coffeebot.perception.angle import AngleEstimator, Rejection, pair_angle_deg
 from coffeebot.perception.collision import CollisionMonitor
 from coffeebot.perception.door import DoorDetector
 from coffeebot.perception.geometry import TravelFrame, side_pairs, valid_distance, wrap_deg
 from coffeebot.perception.state import StateEstimator
+from coffeebot.perception.walls import explainer
 from coffeebot.sim.world import ObstacleSpec, Pose, RobotSpec, World
 from coffeebot.sim.world.obstacles import obstacle_surfaces
-from coffeebot.sim.world.tof import SensorArray, ToFModel, ToFReading
+from coffeebot.sim.world.tof import ToFReading, as_range_reading, robot_setup
 from coffeebot.sim.world.trace import hallway_pass, hallway_pose
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -63,10 +64,7 @@ def to_scan(readings: list[ToFReading] | tuple[ToFReading, ...], t: float) -> Ra
     return RangeScan(
         cycle_start_s=t,
         cycle_time_s=1.0 / SCAN_HZ,
-        readings=[
-            RangeReading(sensor=i, status=r.status, distance_mm=r.distance_mm)
-            for i, r in enumerate(readings)
-        ],
+        readings=[as_range_reading(i, r) for i, r in enumerate(readings)],
     )
 
 
@@ -98,7 +96,7 @@ def _measure_angle(
     estimator = AngleEstimator(config.tof.sensors, config.angle, config.tof.effective_half_fov_deg)
     result: AngleEstimate | Rejection = Rejection("no scans")
     for k in range(config.angle.scans_per_estimate):
-        scan = to_scan(world.scan(), k / SCAN_HZ)
+        scan = to_scan(world.scan(robot_setup(config.tof)), k / SCAN_HZ)
         result = estimator.update(scan, k, prior, floor, False, k / SCAN_HZ)
     return result
 
@@ -106,7 +104,8 @@ def _measure_angle(
 def _seed_rule_angle(world: World, config: RobotConfig, side: str) -> float | None:
     """What the seed's rule alone computes from one side's raw pair (no checks)."""
     pair = side_pairs(config.tof.sensors)[side]  # type: ignore[index]
-    readings = {i: valid_distance(r) for i, r in enumerate(to_scan(world.scan(), 0).readings)}
+    scan = to_scan(world.scan(robot_setup(config.tof)), 0)
+    readings = {i: valid_distance(r) for i, r in enumerate(scan.readings)}
     front, rear = readings.get(pair.front.id), readings.get(pair.rear.id)
     if front is None or rear is None:
         return None
@@ -204,10 +203,16 @@ def bench_door(
                 plan, spec, floor=level, pose=hallway_pose(floor, 600, LANE_D_MM), seed=speed
             )
             end = floor.hallway.length_mm - 700
-            rows = hallway_pass(world, speed_mm_s=speed, to_s_mm=end, rate_hz=SCAN_HZ)
+            rows = hallway_pass(
+                world,
+                speed_mm_s=speed,
+                to_s_mm=end,
+                rate_hz=SCAN_HZ,
+                setup=robot_setup(config.tof),
+            )
             distance_m += (rows[-1].s_mm - rows[0].s_mm) / 1000.0
             detector = DoorDetector(
-                config.tof.sensors, config.door, config.tof.effective_half_fov_deg
+                config.tof.sensors, config.door, config.tof.cone_half_deg
             )
             events = []
             for k, row in enumerate(rows[1:], start=1):
@@ -275,15 +280,24 @@ def _approach(
         max_speed_mm_s=config.motor.max_speed_mm_s,
         max_range_mm=config.tof.max_range_mm,
         body_width_mm=config.geometry.width_mm,
+        body_length_mm=config.geometry.length_mm,
+        tracking=config.tracking,
+        axle_x_mm=config.motor.axle_x_mm,
     )
-    half_base = spec.wheel_base_mm / 2
+    setup = robot_setup(config.tof)
     clearance = math.inf
     stopped_for = 0.0
     seq = 0
     while world.t_s < 5000 / speed + 8.0:
         seq += 1
         left, right = world.wheel_speeds_mm_s
-        verdict = monitor.update(to_scan(world.scan(), world.t_s), (left + right) / 2, seq)
+        # As the collision module with a good pose: the plan's walls place what they explain.
+        explain = explainer(
+            floor, known_pose(world.pose, obstacle.floor, 10, 1), config.motion.wall_margin_mm
+        )
+        verdict = monitor.update(
+            to_scan(world.scan(setup), world.t_s), (left + right) / 2, seq, 0.0, explain
+        )
         target = {
             SafetyState.GO: speed,
             SafetyState.SLOW: min(speed, verdict.speed_limit_mm_s),
@@ -291,9 +305,10 @@ def _approach(
         }[verdict.state]
         pose = world.pose
         s, d = floor.to_hallway(pose.x_mm, pose.y_mm)
-        heading_error = math.radians(wrap_deg(pose.heading_deg - floor.hallway.heading_deg))
-        turn = 2.0 * (-0.004 * (d - LANE_D_MM) - heading_error) * half_base if target else 0.0
-        world.command_wheels(target - turn, target + turn)
+        # Lane keeping as motion does it (pure pursuit on the lane, heading hold).
+        heading = lane_heading_deg(floor.hallway.heading_deg, LANE_D_MM - d, config.motion)
+        turn = turn_rate_dps(pose.heading_deg, heading, config.motion) if target else 0.0
+        world.command_wheels(*wheel_speeds(target, turn, spec.wheel_base_mm))
         world.step(1.0 / SCAN_HZ)
         clearance = min(clearance, _clearance(world, obstacle))
         stopped_for = stopped_for + 1.0 / SCAN_HZ if abs(world.body.state.speed_mm_s) < 1 else 0
@@ -353,29 +368,6 @@ UNDETECTABLE = {
 }
 
 
-def sensor_model_check(spec: RobotSpec) -> dict[str, Any]:
-    """How the simulated cone compares with a real VL53L1X for a 30 mm chair leg."""
-    model = ToFModel()
-    array = SensorArray(spec.sensors[:1], model)
-    fov = spec.sensors[0].fov_deg
-    pitch = fov / (model.rays_per_axis - 1)
-    leg = 30.0
-    at_mm = 1000.0
-    footprint = 2 * at_mm * math.tan(math.radians(fov / 2))
-    return {
-        "rays_per_sensor": array.rays_per_sensor,
-        "ray_pitch_deg": round(pitch, 2),
-        "leg_always_hit_within_mm": round(leg / (2 * math.tan(math.radians(pitch / 2))), 0),
-        "leg_share_of_cone_at_1m": round(leg * footprint / (math.pi * (footprint / 2) ** 2), 3),
-        "note": "the real sensor integrates its whole field of view (16x16 SPADs) and "
-        "reports a signal-weighted average of what it sees; the simulator casts the rays "
-        "above, reports the nearest hit, and a hit on fewer than 20% of the rays only half "
-        "the time: a leg between rays is invisible to it, while to a real sensor it is a "
-        "few per cent of the signal, mixed with the wall behind. Not changed: either way "
-        "a thin leg beyond ~0.3 m is not a reliable return",
-    }
-
-
 def bench_collision(
     plan: FloorPlan, config: RobotConfig, spec: RobotSpec, speeds: list[int]
 ) -> dict[str, Any]:
@@ -401,7 +393,6 @@ def bench_collision(
         "min_clearance_mm": min(clearances) if clearances else None,
         "by_obstacle": runs,
         "undetectable": [{"obstacle": k, "why": why} for k, why in undetectable],
-        "sensor_model": sensor_model_check(spec),
         "chain": "scans -> CollisionMonitor -> braking model (stop/slow limit to the simulated "
         "motors, their own 500 mm/s^2 ramp) -> simulated robot; motion module and motor "
         "controller protocol not in the loop",
@@ -423,7 +414,7 @@ def bench_localization(
         )
         state = StateEstimator(plan, config.motor, config.state)
         angle = AngleEstimator(config.tof.sensors, config.angle, config.tof.effective_half_fov_deg)
-        doors = DoorDetector(config.tof.sensors, config.door, config.tof.effective_half_fov_deg)
+        doors = DoorDetector(config.tof.sensors, config.door, config.tof.cone_half_deg)
         half_base = spec.wheel_base_mm / 2
         end = floor.hallway.length_mm - 1000
         dt = 0.02  # motor-controller telemetry at 50 Hz, scans and UWB at 10 Hz
@@ -458,7 +449,7 @@ def bench_localization(
                     state.on_uwb(fix, now)
                     uwb.append(math.hypot(fix.x_mm - pose.x_mm, fix.y_mm - pose.y_mm))
                 estimate = state.pose()
-                scan = to_scan(world.scan(), now)
+                scan = to_scan(world.scan(robot_setup(config.tof)), now)
                 result = angle.update(scan, tick, estimate, floor, False, now)
                 if isinstance(result, AngleEstimate):
                     state.on_angle(result, now)
@@ -535,12 +526,6 @@ def table(result: dict[str, Any]) -> str:
         f"| **min {c['min_clearance_mm']}** |",
     ]
     lines += [f"- undetectable: {u['obstacle']}: {u['why']}" for u in c["undetectable"]]
-    m = c["sensor_model"]
-    lines += [
-        f"- sensor model: {m['rays_per_sensor']} rays per cone, {m['ray_pitch_deg']} deg apart: "
-        f"a 30 mm leg is always hit only within {m['leg_always_hit_within_mm']:.0f} mm; at 1 m "
-        f"it is {m['leg_share_of_cone_at_1m']:.1%} of the cone. {m['note']}",
-    ]
     lines += [
         "",
         "| localization | value | target |",

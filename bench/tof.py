@@ -28,7 +28,7 @@ from coffeebot.hardware.vl53l1x import VL53L1X
 from coffeebot.messages import ALL_TOPICS, RANGE_SCAN
 from coffeebot.modules.base import ModuleBoard, ModuleContext
 from coffeebot.modules.tof_poller import TofPoller
-from coffeebot.sim.i2c import make_tof_hardware
+from coffeebot.sim.i2c import make_tof_hardware, targets_at
 
 SENSORS = 8
 BUDGET_MS = 20
@@ -78,7 +78,7 @@ def tof_config() -> TofConfig:
 
 async def run_poller(seconds: float) -> tuple[float, float, BusTraffic, int]:
     """Scan rate (Hz), bus seconds per cycle, total traffic, and the cycles it covers."""
-    hw = make_tof_hardware(lambda ch: 1000.0 + ch)
+    hw = make_tof_hardware(targets_at(lambda ch: 1000.0 + ch))
     timed = TimedBus(hw.bus)
     counting = CountingBus(timed)
     clock = MonotonicClock()
@@ -107,7 +107,7 @@ async def run_poller(seconds: float) -> tuple[float, float, BusTraffic, int]:
 def baseline_cycle_seconds(repeats: int = 200) -> float:
     """The same per-sensor transfers as one poller cycle (select, ready, result, clear), in a
     plain loop on a sensor that always has data: the floor for the simulated bus."""
-    hw = make_tof_hardware(lambda ch: 1000.0 + ch)
+    hw = make_tof_hardware(targets_at(lambda ch: 1000.0 + ch))
     timed = TimedBus(hw.bus)
     mux = TCA9548A(timed)
     sensors = [VL53L1X(timed, name=f"tof{i}") for i in range(SENSORS)]

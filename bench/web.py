@@ -12,9 +12,9 @@ JSON. Latency ratios are against ``GET /healthz`` measured in the same run.
 Control-loop deadlines are measured on the real loop: every ``tof/scan`` envelope and every
 ``safety/collision`` verdict is noted as it is published (board clock stamps), and the verdict
 is matched to its scan by ``scan_seq``. A scan whose verdict was published more than one scan
-period after the scan's stamp, or that never got a verdict, is a missed deadline. The
-simulation's pacer, which slows the clock when the machine falls behind, is held at 1.0 for
-the run: on the robot time does not slow down, so the stamps stay wall-clock time.
+period after the scan's stamp, or that never got a verdict, is a missed deadline. The daemon
+runs on the machine's clock (``SimSetup.wall_clock``), as on the robot, where time does not
+wait for a busy loop: the stamps are wall-clock time.
 
 Usage: ``.venv/bin/python bench/web.py [--requests 2000] [--seconds 10] [--streams 20]
 [--scenario scenarios/floor2-far.toml]``
@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import dataclasses
 import json
 import math
 import sys
@@ -37,7 +38,6 @@ from urllib.parse import urlsplit
 import aiohttp
 
 from coffeebot.board import Board
-from coffeebot.clock import ScaledClock
 from coffeebot.config import load_robot_config
 from coffeebot.messages import COLLISION, ORDER_UPDATE, RANGE_SCAN, OrderStatus
 from coffeebot.modules.base import Module, ModuleContext
@@ -322,9 +322,6 @@ async def serve_and_measure(
     bench: list[LoadBench] = []
 
     def add(runtime: Runtime, sim: Simulation) -> list[Module]:
-        clock = runtime.board.clock
-        assert isinstance(clock, ScaledClock)
-        clock.set_rate = lambda rate: None  # type: ignore[method-assign]
         driver = ScenarioModule(
             scenario, plan, runtime.config, sim, runtime.orders, runtime.request_stop
         )
@@ -332,7 +329,8 @@ async def serve_and_measure(
         bench.append(LoadBench(runtime, sim, tap, requests, seconds, streams, period_s))
         return [driver, bench[0]]
 
-    async with build_sim(config, plan, scenario.setup(1.0), add, web=True) as (runtime, _):
+    setup = dataclasses.replace(scenario.setup(1.0), wall_clock=True)
+    async with build_sim(config, plan, setup, add, web=True) as (runtime, _):
         await serve(runtime)
     if bench[0].error or not bench[0].rows:
         raise SystemExit(f"benchmark failed: {bench[0].error or 'the run ended first'}")

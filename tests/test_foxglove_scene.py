@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from coffeebot.config import RobotConfig, load_robot_config
+from coffeebot.config import GeometryConfig, TofSensorConfig
 from coffeebot.floorplan import load_floorplan
 from coffeebot.foxglove_scene import (
     REACH_COLOURS,
@@ -25,9 +25,13 @@ from foxglove_decode import decode_message
 REPO = Path(__file__).resolve().parents[1]
 
 
-@pytest.fixture(scope="module")
-def config() -> RobotConfig:
-    return load_robot_config(REPO / "boards" / "coffeebot-v1.toml")
+SENSORS = [
+    TofSensorConfig(id=0, channel=0, face="right", x_mm=-138.5, y_mm=-255, yaw_deg=-90),
+    TofSensorConfig(id=3, channel=3, face="front", x_mm=305, y_mm=-57.5, yaw_deg=0),
+    TofSensorConfig(id=6, channel=6, face="left", x_mm=138.5, y_mm=255, yaw_deg=90),
+]
+"""Three of the seed's mounts, straight out (27 degree field of view, 250 mm up)."""
+MAX_RANGE_MM = 4000
 
 
 def readings() -> list[RangeReading]:
@@ -54,12 +58,8 @@ def test_the_pose_is_the_transform_from_map_to_the_body_in_metres() -> None:
     assert tf["timestamp"] == "1970-01-01T00:00:03.250Z"
 
 
-def test_a_reading_that_hit_is_a_point_on_its_sensors_axis_others_are_not(
-    config: RobotConfig,
-) -> None:
-    cloud = decode_message(
-        scan_points(readings(), config.tof.sensors, config.tof.max_range_mm, stamp=1.0)
-    )
+def test_a_reading_that_hit_is_a_point_on_its_sensors_axis_others_are_not() -> None:
+    cloud = decode_message(scan_points(readings(), SENSORS, MAX_RANGE_MM, stamp=1.0))
     assert cloud["frameId"] == "base_link"
     assert [f["name"] for f in cloud["fields"]] == ["x", "y", "z", "distance"]
     data = base64.b64decode(cloud["data"])
@@ -69,14 +69,9 @@ def test_a_reading_that_hit_is_a_point_on_its_sensors_axis_others_are_not(
     assert (x, y, z, distance) == pytest.approx((1.105, -0.0575, 0.25, 0.8))
 
 
-def test_each_sensor_is_a_cone_from_its_mount_coloured_by_what_it_saw(
-    config: RobotConfig,
-) -> None:
-    scene = decode_message(
-        body_and_cones(
-            readings(), config.tof.sensors, config.geometry, config.tof.max_range_mm, stamp=1.0
-        )
-    )
+def test_each_sensor_is_a_cone_from_its_mount_coloured_by_what_it_saw() -> None:
+    geometry = GeometryConfig(width_mm=510, length_mm=610)
+    scene = decode_message(body_and_cones(readings(), SENSORS, geometry, MAX_RANGE_MM, stamp=1.0))
     (robot,) = scene["entities"]
     assert robot["frameId"] == "base_link"
     (body,) = robot["cubes"]

@@ -7,6 +7,7 @@ from __future__ import annotations
 import asyncio
 import base64
 import json
+import math
 import socket
 import struct
 from collections.abc import AsyncIterator
@@ -213,11 +214,22 @@ async def test_the_simulated_robot_live_its_scans_cones_points_and_walls() -> No
 
     (robot,) = scene(2)["entities"]
     assert len(robot["lines"]) == 8 and len(robot["cubes"]) == 1
-    # Standing in the 1.7 m hallway at the tea room door, facing along it: the side sensors
-    # see a wall or the door within the hallway's width, on their axis 255 mm out.
-    side = [p for p in points(channels, received[3]) if abs(p[1]) > 0.3]
-    assert side
-    for _, y, _, distance in side:
-        assert 0 < distance < 1.7 and abs(y) == pytest.approx(0.255 + distance)
+    # Each point lies on one sensor's axis, as far from its lens as it ranged, at its height.
+    hits = points(channels, received[3])
+    assert hits
+    for x, y, z, distance in hits:
+        assert 0 < distance < config.tof.max_range_mm / 1000
+        assert any(
+            (x, y, z)
+            == pytest.approx(
+                (
+                    (s.x_mm + distance * 1000 * math.cos(math.radians(s.yaw_deg))) / 1000,
+                    (s.y_mm + distance * 1000 * math.sin(math.radians(s.yaw_deg))) / 1000,
+                    s.height_mm / 1000,
+                ),
+                abs=1e-4,
+            )
+            for s in config.tof.sensors
+        )
     (walls,) = scene(4)["entities"]
     assert len(walls["lines"][0]["points"]) == 2 * len(plan.floor(2).segments)

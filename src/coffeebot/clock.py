@@ -8,7 +8,12 @@ and tests can reason about time without racing the machine.
 from __future__ import annotations
 
 import asyncio
+import contextlib
+import heapq
+import itertools
+import threading
 import time
+from collections.abc import Iterator
 from typing import Protocol
 
 
@@ -49,6 +54,7 @@ class ScaledClock:
         self.speed = speed
         # One tuple, replaced whole: driver threads read it while the loop changes the rate.
         self._segment = (start, time.monotonic(), speed)
+        self._lock = threading.Lock()
 
     @property
     def rate(self) -> float:
@@ -60,13 +66,83 @@ class ScaledClock:
 
     def set_rate(self, rate: float) -> None:
         """Run at ``rate`` x real time from now on (clamped to ``(0, speed]``)."""
-        real = time.monotonic()
-        sim0, real0, old = self._segment
-        self._segment = (sim0 + (real - real0) * old, real, min(max(rate, 1e-3), self.speed))
+        with self._lock:
+            self._segment = (self.now(), time.monotonic(), min(max(rate, 1e-3), self.speed))
 
     def restart(self, start: float) -> None:
         """Read ``start`` from this moment on; replay uses it to line up with a recording."""
-        self._segment = (start, time.monotonic(), self.rate)
+        with self._lock:
+            self._segment = (start, time.monotonic(), self.rate)
 
     async def sleep(self, seconds: float) -> None:
         await asyncio.sleep(max(0.0, seconds) / self.rate)
+
+
+class SteppedClock:
+    """Simulated time that only the simulated world moves on: what the simulator runs on.
+
+    ``now`` is the world's time; the world module calls :meth:`advance` once per physics
+    step, pacing itself to ``speed`` times the machine's clock when it can. A machine too
+    busy to keep up (other processes, a loaded core) therefore makes a run slower, never
+    different: while the daemon's process gets no CPU, simulated time does not pass either,
+    so no sensor goes stale and no verdict gets old for lack of CPU. While any thread is
+    inside the world (the chips asking for their cones' returns from the I2C worker), time
+    does not move on either (:meth:`hold`): computing the world is not time the robot has.
+
+    Sleeping waits until simulated time has passed, woken by the steps; :meth:`advance` must
+    be called from the event loop the sleepers run on. Until the first step (the hardware
+    self-check, before the daemon's modules start, talks to the simulated chips) time runs
+    freely at ``speed``, as a :class:`ScaledClock` would.
+    """
+
+    def __init__(self, speed: float = 1.0, start: float = 0.0) -> None:
+        if speed <= 0:
+            raise ValueError(f"clock speed must be positive, got {speed}")
+        self.speed = speed
+        self._free = ScaledClock(speed, start)
+        self._t: float | None = None
+        """Simulated time once the world steps it; None while it still runs freely."""
+        self._sleepers: list[tuple[float, int, asyncio.Future[None]]] = []
+        self._count = itertools.count()
+        self._lock = threading.Lock()
+        self._holds = 0
+
+    def now(self) -> float:
+        t = self._t
+        return self._free.now() if t is None else t
+
+    @contextlib.contextmanager
+    def hold(self) -> Iterator[None]:
+        """Time does not move on while any thread is inside (threads may overlap)."""
+        with self._lock:
+            self._holds += 1
+        try:
+            yield
+        finally:
+            with self._lock:
+                self._holds -= 1
+
+    def advance(self, dt: float) -> bool:
+        """Move time on by ``dt`` and wake whoever slept until then; refused (False) while
+        held."""
+        with self._lock:
+            if self._holds:
+                return False
+            self._t = (self._free.now() if self._t is None else self._t) + dt
+            t = self._t
+        while self._sleepers and self._sleepers[0][0] <= t:
+            _, _, waiter = heapq.heappop(self._sleepers)
+            if not waiter.done():
+                waiter.set_result(None)
+        return True
+
+    async def sleep(self, seconds: float) -> None:
+        if self._t is None:
+            await self._free.sleep(seconds)
+            return
+        if seconds <= 0:
+            await asyncio.sleep(0)
+            return
+        waiter = asyncio.get_running_loop().create_future()
+        heapq.heappush(self._sleepers, (self._t + seconds, next(self._count), waiter))
+        await waiter

@@ -14,6 +14,7 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from coffeebot.errors import ConfigError
+from coffeebot.hardware.vl53l1x import field_of_view_deg
 
 
 class Section(BaseModel):
@@ -42,7 +43,15 @@ class TofSensorConfig(Section):
     y_mm: float
     yaw_deg: float = Field(ge=-180, le=180)
     height_mm: float = Field(250.0, gt=0)
-    fov_deg: float = Field(27.0, ge=15, le=27)
+    roi_spads: int = Field(
+        16, ge=4, le=16, description="square region of interest: 16 = the full 27 degree cone, "
+        "4 = the narrowest, 15 degrees (and a tenth of the light)"
+    )
+
+    @property
+    def fov_deg(self) -> float:
+        """The nominal field of view of the configured region of interest."""
+        return field_of_view_deg(self.roi_spads)
 
 
 class TofConfig(Section):
@@ -52,15 +61,26 @@ class TofConfig(Section):
         None, gt=0, le=100, description="None: as fast as the timing budget allows"
     )
     max_range_mm: int = Field(4000, gt=0)
-    noisy_beyond_mm: int = Field(1000, gt=0)
+    min_signal_mcps: float = Field(
+        1.0, ge=0, lt=512, description="the chip's minimum signal rate for a valid ranging"
+    )
+    sigma_limit_mm: float = Field(
+        90.0, gt=0, lt=16384, description="the chip's sigma limit for a valid ranging"
+    )
     effective_half_fov_deg: float = Field(
-        13.5,
+        0.0,
         ge=0,
         le=20,
-        description="ranging model for wall geometry: a reading is the nearest return within "
-        "this many degrees of the optical axis (half the 27 degree cone); 0 = along the axis",
+        description="ranging model for wall geometry (angle correction): a reading is the "
+        "nearest return within this many degrees of the optical axis; 0 = along the axis, "
+        "which is what the VL53L1X's signal-weighted mean gives on a flat wall",
     )
     sensors: list[TofSensorConfig]
+
+    @property
+    def cone_half_deg(self) -> float:
+        """Half the widest sensor's nominal field of view: where a return may come from."""
+        return max((s.fov_deg for s in self.sensors), default=0.0) / 2.0
 
     @model_validator(mode="after")
     def _unique(self) -> TofConfig:
@@ -113,6 +133,12 @@ class CollisionConfig(Section):
         50.0, gt=0, description="slowest crawl the slowdown zone asks for before stopping"
     )
     hysteresis_mm: float = Field(30.0, ge=0, description="extra clearance needed to relax")
+    corridor_margin_mm: float = Field(
+        100.0, ge=0, description="a front return this far beside the body's width is in the way"
+    )
+    creep_ahead_mm_s: float = Field(
+        100.0, gt=0, description="the straight creep out of a side hold"
+    )
     stale_cycles: int = Field(5, ge=1, description="scans without a valid reading -> stop")
     unknown_speed_mm_s: float | None = Field(
         None, gt=0, description="speed assumed without fresh odometry; None: motor max speed"
@@ -150,10 +176,38 @@ class CollisionConfig(Section):
     )
 
 
+class TrackingConfig(Section):
+    """Returns followed over scans (perception/tracking.py): people walking into the way."""
+
+    max_range_mm: float = Field(2500.0, gt=0, description="readings further are not tracked")
+    range_sigma_mm: float = Field(30.0, gt=0, description="a reading's error along its axis")
+    accel_sigma_mm_s2: float = Field(
+        1500.0, gt=0, description="how hard a tracked person may change pace"
+    )
+    initial_speed_sigma_mm_s: float = Field(
+        1600.0, gt=0, description="a new track may move as fast as a brisk walk (ISO 13855)"
+    )
+    gate_sigmas: float = Field(3.0, gt=0, description="association gate, in standard deviations")
+    confirm_hits: int = Field(3, ge=2, description="points before a track's velocity counts")
+    forget_s: float = Field(0.4, gt=0, description="a track not seen this long is dropped")
+    mover_speed_mm_s: float = Field(
+        250.0, gt=0, description="slower over the ground is standing (noise, a sliding glance)"
+    )
+    corridor_margin_mm: float = Field(
+        100.0, ge=0, description="a mover this close to the body's corridor is in it"
+    )
+    horizon_s: float = Field(
+        0.8, gt=0, description="prediction beyond the time to stop: how far ahead to look"
+    )
+
+
 class AngleConfig(Section):
     """Seed 000 angle correction from a side's sensor pair, with the door-straddle checks."""
 
     max_side_distance_mm: float = Field(850.0, gt=0, description="both side sensors below")
+    max_sigma_mm: float = Field(
+        20.0, gt=0, description="readings the sensor reports a larger sigma for are not used"
+    )
     min_angle_deg: float = Field(5.0, ge=0, description="smaller angles are no correction")
     scans_per_estimate: int = Field(
         8, ge=1, description="accepted scans averaged (heading changes compensated) per angle"
@@ -414,6 +468,7 @@ class RobotConfig(Section):
     motor: MotorConfig
     geometry: GeometryConfig = GeometryConfig()
     collision: CollisionConfig = CollisionConfig()
+    tracking: TrackingConfig = TrackingConfig()
     angle: AngleConfig = AngleConfig()
     door: DoorConfig = DoorConfig()
     state: StateConfig = StateConfig()

@@ -69,11 +69,31 @@ class ReadingStatus(StrEnum):
     OTHER = "other"
 
 
+NOTHING_IN_RANGE = frozenset(
+    {
+        ReadingStatus.NO_TARGET,
+        ReadingStatus.OUT_OF_BOUNDS,
+        ReadingStatus.SIGNAL_FAIL,
+        ReadingStatus.SIGMA_FAIL,
+    }
+)
+"""Statuses of a sensor that ranged and found nothing it can measure: the face is clear, not
+blind. On the VL53L1X "nothing in view" is a signal fail (too little light came back) and a
+far or dark target is a signal or sigma fail; a near target of any size returns enough light
+to be valid (docs/sensor-model.md)."""
+
+
 class RangeReading(Message):
+    """One VL53L1X ranging. ``distance_mm`` is set only for a valid status (under a bad one
+    the chip's distance register holds a number that is often garbage); signal, ambient and
+    sigma say what the reading is worth whatever its status."""
+
     sensor: int = Field(ge=0, le=7)
     status: ReadingStatus
     distance_mm: int | None = None
     signal_rate_mcps: float | None = None
+    ambient_rate_mcps: float | None = None
+    sigma_mm: float | None = None
     healthy: bool = True
 
 
@@ -157,6 +177,10 @@ class CollisionStatus(Message):
     """A "stop" whose only cause is an obstacle on the front face, with no sensor fault,
     clear sides, and a front clearance no smaller than when the stop began: turning on the
     spot (zero forward speed) away from it is allowed. Everything else stays stopped."""
+    may_creep_ahead: bool = False
+    """A "stop" whose only cause is something within a side radius, with nothing in the way
+    ahead and a side gap no smaller than when the hold began: creeping straight ahead
+    (no turning, which would swing a corner into it) is allowed, the way out of a side hold."""
 
 
 # --- orders and delivery ------------------------------------------------------------------

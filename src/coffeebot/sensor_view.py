@@ -14,20 +14,9 @@ from typing import Literal
 from pydantic import BaseModel
 
 from coffeebot.config import TofSensorConfig
-from coffeebot.messages import RangeReading, ReadingStatus
+from coffeebot.messages import NOTHING_IN_RANGE, RangeReading, ReadingStatus
 
 Reach = Literal["hit", "clear", "fault"]
-
-CLEAR = frozenset(
-    {
-        ReadingStatus.OUT_OF_BOUNDS,
-        ReadingStatus.NO_TARGET,
-        ReadingStatus.SIGNAL_FAIL,
-        ReadingStatus.SIGMA_FAIL,
-    }
-)
-"""Statuses of a sensor that ranged and found nothing it could measure: a clear cone out to
-the sensor's range, not a fault."""
 
 
 class ConeShape(BaseModel):
@@ -56,7 +45,7 @@ def reach(reading: RangeReading, max_range_mm: float) -> tuple[Reach, float, str
         return "hit", float(reading.distance_mm), f"{reading.distance_mm} mm"
     if reading.status is ReadingStatus.TOO_CLOSE:
         return "hit", float(reading.distance_mm or 0), "too close to range"
-    if reading.status in CLEAR:
+    if reading.status in NOTHING_IN_RANGE:
         return "clear", max_range_mm, "nothing in range"
     return "fault", 0.0, fault
 

@@ -9,9 +9,16 @@ import pytest
 from coffeebot.hardware.errors import DeviceError
 from coffeebot.hardware.i2c import CountingBus
 from coffeebot.hardware.tca9548a import TCA9548A
-from coffeebot.hardware.vl53l1x import VL53L1X, DistanceMode, reading_status
+from coffeebot.hardware.vl53l1x import (
+    VL53L1X,
+    DistanceMode,
+    Measurement,
+    SpadRoi,
+    reading_status,
+)
 from coffeebot.messages import ReadingStatus
-from coffeebot.sim.i2c import SimTofHardware, make_tof_hardware
+from coffeebot.sim.i2c import SimTofHardware, make_tof_hardware, targets_at
+from coffeebot.sim.world.tof import ConeOptics, flat_target
 
 
 class FakeTime:
@@ -34,7 +41,7 @@ def fake_time() -> FakeTime:
 
 @pytest.fixture
 def hw(fake_time: FakeTime) -> SimTofHardware:
-    return make_tof_hardware(lambda ch: 500.0 + 100 * ch, clock=fake_time.now)
+    return make_tof_hardware(targets_at(lambda ch: 500.0 + 100 * ch), clock=fake_time.now)
 
 
 def sensor_on(hw: SimTofHardware, fake_time: FakeTime, channel: int) -> VL53L1X:
@@ -42,10 +49,15 @@ def sensor_on(hw: SimTofHardware, fake_time: FakeTime, channel: int) -> VL53L1X:
     return VL53L1X(hw.bus, name=f"tof{channel}", sleep=fake_time.sleep)
 
 
-def range_once(sensor: VL53L1X) -> tuple[ReadingStatus, int]:
+def range_measurement(sensor: VL53L1X) -> Measurement:
     sensor.wait_data_ready()
     m = sensor.read_measurement()
     sensor.clear_interrupt()
+    return m
+
+
+def range_once(sensor: VL53L1X) -> tuple[ReadingStatus, int]:
+    m = range_measurement(sensor)
     return m.status, m.distance_mm
 
 
@@ -109,7 +121,7 @@ def test_not_ranging_means_never_ready(hw: SimTofHardware, fake_time: FakeTime) 
 
 def test_reading_before_ready_is_stale(hw: SimTofHardware, fake_time: FakeTime) -> None:
     distances = {0: 300.0}
-    hw.sensors[0].distance_fn = distances.__getitem__
+    hw.sensors[0].scene = targets_at(distances.__getitem__)
     sensor = sensor_on(hw, fake_time, 0)
     sensor.init()
     sensor.configure(DistanceMode.LONG, 20, 20)
@@ -163,15 +175,85 @@ def test_forced_status_error_reaches_the_reading(hw: SimTofHardware, fake_time: 
     assert range_once(sensor)[0] is ReadingStatus.SIGNAL_FAIL
 
 
-def test_out_of_range_and_too_close(hw: SimTofHardware, fake_time: FakeTime) -> None:
+def test_nothing_in_view_too_close_and_out_of_bounds(
+    hw: SimTofHardware, fake_time: FakeTime
+) -> None:
     distances: dict[int, float | None] = {0: None}
-    hw.sensors[0].distance_fn = distances.__getitem__
+    hw.sensors[0].scene = targets_at(distances.__getitem__)
     sensor = sensor_on(hw, fake_time, 0)
     sensor.init()
     sensor.start_ranging()
-    assert range_once(sensor)[0] is ReadingStatus.OUT_OF_BOUNDS
+    # Nothing sends light back: the signal is below the chip's minimum rate.
+    assert range_once(sensor)[0] is ReadingStatus.SIGNAL_FAIL
     distances[0] = 20.0
     assert range_once(sensor) == (ReadingStatus.TOO_CLOSE, 20)
+    # A white card 5 m away returns ~0.5 Mcps: lost under the default 1 Mcps minimum; with
+    # a lower minimum it is seen, beyond the long mode's 4 m.
+    distances[0] = 5000.0
+    assert range_once(sensor)[0] is ReadingStatus.SIGNAL_FAIL
+    sensor.set_thresholds(0.25, 90.0)
+    assert range_once(sensor) == (ReadingStatus.OUT_OF_BOUNDS, 5000)
+
+
+def test_identification_bytes_read_at_once(hw: SimTofHardware, fake_time: FakeTime) -> None:
+    """A driver that reads model id, module type and mask revision in one burst (as ST's
+    full driver does) finds the part's real values, not a zero mask revision."""
+    sensor = sensor_on(hw, fake_time, 0)
+    assert sensor.identification() == bytes([0xEA, 0xCC, 0x10])
+    assert sensor.read_int(0x0111, 1) == 0x10
+
+
+def test_address_register_moves_the_sensor(hw: SimTofHardware, fake_time: FakeTime) -> None:
+    sensor = sensor_on(hw, fake_time, 3)
+    assert sensor.read_int(0x0001, 1) == 0x29
+    sensor.set_address(0x31)
+    assert sensor.model_id() == 0xEACC  # the driver follows it to 0x31
+    with pytest.raises(OSError):
+        VL53L1X(hw.bus, 0x29).model_id()  # nobody answers at the old address
+    hw.sensors[3].power_cycle()
+    assert VL53L1X(hw.bus, 0x29).model_id() == 0xEACC  # volatile: back after power-off
+    with pytest.raises(ValueError, match="0x80"):
+        sensor.set_address(0x80)
+
+
+def test_roi_and_thresholds_are_registers_the_chip_ranges_with(
+    hw: SimTofHardware, fake_time: FakeTime
+) -> None:
+    sensor = sensor_on(hw, fake_time, 0)
+    sensor.init()
+    sim = hw.sensors[0]
+    assert sim.roi() == SpadRoi(16, 16, 199)  # the default configuration block's full array
+    narrow = sensor.centred_roi(4, 4)
+    sensor.set_roi(narrow)
+    assert sensor.roi() == narrow == sim.roi()
+    assert sim.regs[0x0080] == 0x33  # (height - 1) << 4 | (width - 1)
+    left = SpadRoi.steered(4, 4, column=2)
+    sensor.set_roi(left)
+    assert sim.regs[0x007F] == left.centre and sim.roi().spans()[0] == (0, 4)
+    assert (sim.setup().sigma_limit_mm, sim.setup().min_signal_mcps) == (90.0, 1.0)
+    sensor.set_thresholds(0.5, 120.0)
+    assert (sim.setup().sigma_limit_mm, sim.setup().min_signal_mcps) == (120.0, 0.5)
+
+
+def test_result_registers_hold_what_the_ranging_computed(
+    hw: SimTofHardware, fake_time: FakeTime
+) -> None:
+    """Signal, ambient, sigma and SPAD count reach the driver through the 17-byte burst."""
+    sensor = sensor_on(hw, fake_time, 0)
+    sensor.init()
+    sensor.start_ranging()
+    sensor.wait_data_ready()
+    full = sensor.read_measurement()
+    sensor.clear_interrupt()
+    expected = flat_target(500.0, ConeOptics())
+    assert full.distance_mm == 500
+    assert full.signal_rate_mcps == pytest.approx(expected.signal_mcps, abs=1 / 128)
+    assert full.ambient_rate_mcps == pytest.approx(expected.ambient_mcps, abs=1 / 128)
+    assert full.spads == 255  # 256 SPADs do not fit the 8.8 register
+    sensor.set_roi(sensor.centred_roi(4, 4))
+    narrow = range_measurement(sensor)
+    assert narrow.spads == 16
+    assert narrow.signal_rate_mcps < full.signal_rate_mcps / 5  # a tenth of the SPADs
 
 
 def test_sensor_nack_and_bus_timeout_are_oserrors(hw: SimTofHardware, fake_time: FakeTime) -> None:

@@ -24,7 +24,7 @@ from coffeebot.messages import (
 from coffeebot.modules.base import Module, ModuleContext
 from coffeebot.modules.tof_poller import TofPoller
 from coffeebot.sim.clock import SteppedClock
-from coffeebot.sim.i2c import SimTofHardware, make_tof_hardware
+from coffeebot.sim.i2c import SimTofHardware, make_tof_hardware, targets_at
 from logged import events
 
 ContextFor = Callable[[Board, Module, Clock], ModuleContext]
@@ -42,7 +42,7 @@ def tof_config(rate_hz: float | None = 25.0) -> TofConfig:
 
 @pytest.fixture
 def hw(stepped_clock: SteppedClock) -> SimTofHardware:
-    return make_tof_hardware(lambda ch: 1000.0 + ch, clock=stepped_clock.now)
+    return make_tof_hardware(targets_at(lambda ch: 1000.0 + ch), clock=stepped_clock.now)
 
 
 @pytest.fixture

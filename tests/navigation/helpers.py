@@ -6,6 +6,7 @@ command out to the wheels: what the motion module does each period, minus the bo
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -15,26 +16,26 @@ from coffeebot.messages import (
     MotionState,
     MoveInstruction,
     PoseEstimate,
-    RangeReading,
     RangeScan,
     SafetyState,
 )
 from coffeebot.modules.motion import MotionModule
 from coffeebot.navigation.control import wheel_speeds
 from coffeebot.perception.collision import CollisionMonitor
+from coffeebot.perception.walls import explainer
 from coffeebot.sim.world import World
+from coffeebot.sim.world.tof import as_range_reading, robot_setup
 
 ROOT = Path(__file__).resolve().parents[2]
 CONFIG: RobotConfig = load_robot_config(ROOT / "boards" / "coffeebot-v1.toml")
 PLAN: FloorPlan = load_floorplan(ROOT / "floorplans" / "cs-building.toml")
 DT = 0.05
+SETUP = robot_setup(CONFIG.tof)
+"""The chips set up as the ToF poller sets them up."""
 
 
 def to_scan(world: World) -> RangeScan:
-    readings = [
-        RangeReading(sensor=k, status=r.status, distance_mm=r.distance_mm)
-        for k, r in enumerate(world.scan())
-    ]
+    readings = [as_range_reading(k, r) for k, r in enumerate(world.scan(SETUP))]
     return RangeScan(cycle_start_s=world.t_s, cycle_time_s=DT, readings=readings)
 
 
@@ -95,9 +96,24 @@ def drive(
         module.costmap.update(
             scan, PLAN.floor(pose.floor), pose.x_mm, pose.y_mm, pose.heading_deg, world.t_s
         )
-        verdict = monitor.update(scan, pose.speed_mm_s, seq)
+        # As the collision module with a good pose: the plan's walls place what they explain.
+        explain = explainer(PLAN.floor(pose.floor), pose, CONFIG.motion.wall_margin_mm)
+        yaw_rate = math.degrees(world.body.state.yaw_rate_rad_s)
+        verdict = monitor.update(scan, pose.speed_mm_s, seq, yaw_rate, explain)
         limit = 0.0 if verdict.state is SafetyState.STOP else verdict.speed_limit_mm_s
-        if limit <= 0:
+        if limit <= 0 and verdict.may_rotate:
+            # As the motion module: held by something ahead, it may still turn on the spot.
+            command = module.controller.step(instruction, pose, world.t_s, DT, 0.0)
+            run.states.append(command.status.state)
+            turn = wheel_speeds(0.0, command.yaw_rate_dps, CONFIG.motor.wheel_base_mm)
+            world.command_wheels(*turn)
+        elif limit <= 0 and verdict.may_creep_ahead:
+            # As the motion module: held beside something, it may creep straight ahead.
+            creep = CONFIG.collision.creep_ahead_mm_s
+            command = module.controller.step(instruction, pose, world.t_s, DT, creep)
+            run.states.append(command.status.state)
+            world.command_wheels(command.speed_mm_s, command.speed_mm_s)
+        elif limit <= 0:
             module.controller.halt()
             world.command_wheels(0.0, 0.0)
         else:

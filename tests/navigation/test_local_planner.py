@@ -65,7 +65,7 @@ def test_an_empty_cone_clears_only_where_it_looks_whatever_the_heading_error() -
     # further away, past it.
     sx, sy, look = sensor_origin(x, y, heading + 8.0, sensor)
     off_axis = abs(math.degrees(math.atan2(ahead[1] - sy, ahead[0] - sx)) - look)
-    half_fov = CONFIG.tof.effective_half_fov_deg
+    half_fov = CONFIG.tof.cone_half_deg
     assert half_fov - 4.0 < off_axis < half_fov
     costmap.update(one_sensor_scan(3, None), FLOOR, x, y, heading + 8.0, 0.1, 4.0)
     assert marked_near(costmap, *ahead, 0.1)

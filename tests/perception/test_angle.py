@@ -161,3 +161,22 @@ def test_pair_angle_inverts_the_ranging_model(h: float, angle: float) -> None:
     a = math.radians(angle)
     delta = 277.0 * math.sin(a) / math.cos(math.radians(max(0.0, abs(angle) - h)))
     assert pair_angle_deg(delta, 277.0, h) == pytest.approx(angle, abs=1e-6)
+
+
+def test_a_reading_the_sensor_reports_unsure_is_not_used() -> None:
+    """The chip's sigma says what a reading is worth: a weak or blended return is no wall."""
+    floor = hallway_floor()
+    x, y, heading = 4500.0, -300.0, 10.0
+    s = scan_at(floor, x, y, heading)
+    est = estimator()
+    assert isinstance(est.update(s, 1, pose(x, y, heading), floor, False, 0.0), AngleEstimate)
+    unsure = s.model_copy(
+        update={
+            "readings": [
+                r.model_copy(update={"sigma_mm": 60.0}) if r.sensor == 1 else r
+                for r in s.readings
+            ]
+        }
+    )
+    result = estimator().update(unsure, 1, pose(x, y, heading), floor, False, 0.0)
+    assert isinstance(result, Rejection) and "right: no valid reading" in result.reason

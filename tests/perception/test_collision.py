@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import math
+
+import numpy as np
 import pytest
 from perception_helpers import robot, scan
 
@@ -21,10 +24,17 @@ def ahead(distance: int) -> dict[int, int]:
     return dict.fromkeys((2, 3, 4, 5), distance)
 
 
+STRAIGHT = [
+    s.model_copy(update={"yaw_deg": 0.0}) if s.face == "front" else s for s in robot().tof.sensors
+]
+"""The seed's layout, every front sensor looking straight ahead: distances ahead of the
+front face are a reading times cos(half the cone), easy to reason on."""
+
+
 def monitor(**overrides: float) -> CollisionMonitor:
     cfg = robot()
     return CollisionMonitor(
-        cfg.tof.sensors, cfg.collision.model_copy(update=overrides), max_speed_mm_s=1000
+        STRAIGHT, cfg.collision.model_copy(update=overrides), max_speed_mm_s=1000
     )
 
 
@@ -70,7 +80,7 @@ def test_stop_distance_grows_with_speed_and_never_below_seed_radius() -> None:
 def test_slowdown_zone_before_stop_zone_limits_speed() -> None:
     m = monitor()
     m.update(scan(CLEAR), 0, 1)
-    status = m.update(scan({**CLEAR, 4: 450}), speed_mm_s=300, scan_seq=2)
+    status = m.update(scan({**CLEAR, 4: 470}), speed_mm_s=300, scan_seq=2)
     assert status.state is SafetyState.SLOW
     assert status.face == "front" and status.sensor == 4
     assert 0 < status.speed_limit_mm_s < 1000
@@ -111,7 +121,7 @@ def test_with_memory_an_obstacle_leaving_view_clears_only_after_memory_s() -> No
 def test_stale_sensor_stops_after_n_cycles() -> None:
     m = monitor(stale_cycles=3)
     m.update(scan(CLEAR), 0, 1)
-    bad = {5: ReadingStatus.SIGMA_FAIL}
+    bad = {5: ReadingStatus.NOT_READY}
     assert m.update(scan(CLEAR, status=bad), 0, 2).state is SafetyState.GO
     assert m.update(scan(CLEAR, status=bad), 0, 3).state is SafetyState.GO
     status = m.update(scan(CLEAR, status=bad), 0, 4)
@@ -163,6 +173,27 @@ def test_nothing_within_range_is_clear_not_stop() -> None:
     assert out.state is SafetyState.GO
 
 
+def test_a_sensor_that_finds_nothing_it_can_range_is_clear_however_long() -> None:
+    """Down an empty hallway (or at an idle robot's far wall) the VL53L1X answers "signal
+    fail" or "sigma fail": the sensor works and nothing is near. Only no answer is stale."""
+    m = monitor(stale_cycles=3)
+    far = {s: ReadingStatus.SIGNAL_FAIL for s in (2, 3)} | {4: ReadingStatus.SIGMA_FAIL}
+    for seq in range(1, 50):
+        assert m.update(scan(CLEAR, status=far), 0, seq).state is SafetyState.GO
+
+
+def test_a_glance_outside_the_corridor_is_not_in_the_way() -> None:
+    """A front sensor toed out 25 degrees sees the side wall of the hallway diagonally ahead;
+    its arc at 1 m lies wholly beside the body's corridor."""
+    cfg = robot()
+    sensors = [s.model_copy(update={"yaw_deg": -25.0}) if s.id == 2 else s for s in STRAIGHT]
+    m = CollisionMonitor(sensors, cfg.collision, max_speed_mm_s=1000)
+    m.update(scan(CLEAR), 0, 1)
+    assert m.ahead_mm(sensors[2], 1000) is None
+    assert m.update(scan({**CLEAR, 2: 1000}), 900, 2).state is SafetyState.GO
+    assert m.update(scan({**CLEAR, 3: 1000}), 900, 3).state is SafetyState.STOP
+
+
 def test_unknown_speed_assumes_max() -> None:
     m = monitor()
     m.update(scan(CLEAR), 0, 1)
@@ -202,7 +233,9 @@ def test_narrow_margin_slows_earlier_so_the_robot_can_still_stop() -> None:
     m.update(scan(CLEAR), 0, 1)
     narrow = m.update(scan({**CLEAR, 4: 700}), 400, 2)
     assert narrow.state is SafetyState.SLOW
-    room = 700 - cfg.front_radius_mm - cfg.hysteresis_mm - cfg.narrow_margin_mm
+    gap = m.ahead_mm(STRAIGHT[4], 700)
+    assert gap is not None and gap == pytest.approx(700 * math.cos(math.radians(13.5)))
+    room = gap - cfg.front_radius_mm - cfg.hysteresis_mm - cfg.narrow_margin_mm
     assert narrow.speed_limit_mm_s == pytest.approx(safe_speed_mm_s(cfg, room))
     assert narrow.speed_limit_mm_s < wide.speed_limit_mm_s
 
@@ -263,11 +296,23 @@ def test_a_front_only_stop_allows_turning_on_the_spot() -> None:
 
 
 def test_turning_that_brings_the_front_nearer_is_refused() -> None:
+    """Within reach of the front corners a turn may only open the gap. The clearance is
+    smoothed over scans, so a noisy reading alone does not end the turn."""
     m = monitor()
     m.update(scan(CLEAR, t=0.0), 0, 1)
-    assert m.update(scan({**CLEAR, 2: 400}, t=0.1), 0, 2).may_rotate
-    nearer = m.update(scan({**CLEAR, 2: 350}, t=0.2), 0, 3)
+    assert m.update(scan({**CLEAR, 2: 200}, t=0.1), 0, 2).may_rotate
+    assert not m.beyond_front_sweep(STRAIGHT[2], 200)
+    assert m.update(scan({**CLEAR, 2: 185}, t=0.2), 0, 3).may_rotate  # noise
+    nearer = m.update(scan({**CLEAR, 2: 120}, t=0.3), 0, 4)
     assert nearer.state is SafetyState.STOP and not nearer.may_rotate
+
+
+def test_anything_out_of_the_front_corners_reach_never_stops_a_turn() -> None:
+    m = monitor()
+    m.update(scan(CLEAR, t=0.0), 0, 1)
+    assert m.beyond_front_sweep(STRAIGHT[3], 400)
+    assert m.update(scan({**CLEAR, 3: 400}, t=0.1), 0, 2).may_rotate
+    assert m.update(scan({**CLEAR, 3: 300}, t=0.2), 0, 3).may_rotate
 
 
 def test_a_side_stop_or_a_sensor_fault_never_allows_turning() -> None:
@@ -283,3 +328,21 @@ def test_a_side_stop_or_a_sensor_fault_never_allows_turning() -> None:
     ]
     status = m.update(faulty.model_copy(update={"readings": readings}), 0, 2)
     assert status.state is SafetyState.STOP and not status.may_rotate
+
+
+def test_the_body_is_swept_along_the_arc_it_drives() -> None:
+    """Something 900 mm ahead and just inside the corridor on the right: driving straight the
+    body meets it after 900 mm; arcing left, round it, never; arcing gently right, still
+    (it turns onto it), arcing sharply right, never (it turns inside it)."""
+    m = monitor()
+    corner = np.array([[305.0 + 900.0, -300.0]])
+    right = STRAIGHT[2]
+
+    def gap(radius_mm: float | None) -> float | None:
+        curve = 0.0 if radius_mm is None else 1.0 / radius_mm
+        return m.ahead_mm(right, 900, corner, curvature_per_mm=curve)
+
+    assert gap(None) == pytest.approx(900, abs=1)
+    assert gap(760) is None
+    assert gap(-2000) is not None
+    assert gap(-500) is None

@@ -31,7 +31,7 @@ PLAN = load_floorplan(BOARD_FILE.parents[1] / "floorplans" / "cs-building.toml")
 async def test_collision_verdict_in_the_same_loop_turn_as_the_scan(caplog) -> None:
     caplog.set_level("INFO")
     board = Board(ALL_TOPICS)
-    daemon = Daemon(board, [CollisionModule(robot())])
+    daemon = Daemon(board, [CollisionModule(robot(), PLAN)])
     await daemon.start()
     seqs = []
     # Scans far enough apart that the obstacle memory has let go of the 150 mm return.

@@ -49,7 +49,7 @@ from coffeebot.web.livemap import (
 from .conftest import web_deps
 
 FRONT = TofSensorConfig(id=3, channel=3, face="front", x_mm=300, y_mm=0, yaw_deg=0)
-LEFT = TofSensorConfig(id=6, channel=6, face="left", x_mm=0, y_mm=250, yaw_deg=90, fov_deg=20)
+LEFT = TofSensorConfig(id=6, channel=6, face="left", x_mm=0, y_mm=250, yaw_deg=90, roi_spads=4)
 RIGHT = TofSensorConfig(id=0, channel=0, face="right", x_mm=0, y_mm=-250, yaw_deg=-90)
 PLAN = load_floorplan(Path(__file__).resolve().parents[2] / "floorplans" / "cs-building.toml")
 
@@ -83,7 +83,8 @@ def test_cones_start_at_the_mount_turn_with_the_robot_and_say_the_reading() -> N
     assert (front.x_mm, front.y_mm, front.heading_deg) == pytest.approx((5000, 1100, 90))
     assert (front.reach, front.range_mm, front.text) == ("hit", 1000, "tof3: 1000 mm")
     # The cone is as wide as the sensor's configured field of view.
-    assert front.half_fov_deg == FRONT.fov_deg / 2 and left.half_fov_deg == 10.0
+    # The narrowest region of interest draws the narrowest cone: 15 degrees.
+    assert front.half_fov_deg == 13.5 and left.half_fov_deg == 7.5
     assert (left.x_mm, left.y_mm, left.heading_deg) == pytest.approx((4750, 800, 180))
     # Nothing in range: clear as far as the sensor sees, not a fault.
     assert (left.reach, left.range_mm, left.text) == ("clear", 4000, "tof6: nothing in range")

@@ -67,7 +67,7 @@ def one_sensor() -> Callable[..., RobotSpec]:
     return _one_sensor
 
 
-def _one_sensor(yaw_deg: float = 0.0, fov_deg: float = 27.0, **kw: float) -> RobotSpec:
+def _one_sensor(yaw_deg: float = 0.0, **kw: float) -> RobotSpec:
     """A robot with a single sensor at its centre, no slip: geometry is easy to reason on."""
-    mount = SensorMount(x_mm=0, y_mm=0, yaw_deg=yaw_deg, height_mm=250, fov_deg=fov_deg)
+    mount = SensorMount(x_mm=0, y_mm=0, yaw_deg=yaw_deg, height_mm=250)
     return RobotSpec(sensors=(mount,), slip_sigma=0.0, **kw)

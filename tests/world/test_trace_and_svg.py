@@ -38,8 +38,8 @@ def test_pass_shows_the_door_recess_on_the_right_sensors(
     front_right = [
         (r.s_mm + 138.5, r.readings[1]) for r in rows if r.readings[1].status is ReadingStatus.VALID
     ]
-    wall = [d for s, (_, d) in front_right if 3500 < s < 5300]
-    door = [d for s, (_, d) in front_right if 5800 < s < 6200]
+    wall = [r.distance_mm for s, r in front_right if 3500 < s < 5300]
+    door = [r.distance_mm for s, r in front_right if 5800 < s < 6200]
     assert 90 <= np.median(door) - np.median(wall) <= 110
     assert abs(np.median(wall) - (850 - 400 - 255)) < 15
 

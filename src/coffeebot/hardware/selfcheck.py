@@ -20,14 +20,14 @@ from coffeebot.hardware.motor import MotorController
 from coffeebot.hardware.serial_port import SerialPort, open_port
 from coffeebot.hardware.tca9548a import TCA9548A
 from coffeebot.hardware.vl53l1x import MODEL_ID, VL53L1X, DistanceMode
-from coffeebot.messages import ReadingStatus
+from coffeebot.messages import NOTHING_IN_RANGE, ReadingStatus
 
 log = logging.getLogger(__name__)
 
 PORT_TIMEOUT_S = 0.2
 TOF_SAMPLES = 5
-WORKING = frozenset({ReadingStatus.VALID, ReadingStatus.OUT_OF_BOUNDS})
-"""A distance, or nothing in range (an open door, a long hallway): the sensor works."""
+WORKING = frozenset({ReadingStatus.VALID, *NOTHING_IN_RANGE})
+"""A distance, or nothing it can range (an open door, a long hallway): the sensor works."""
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,8 @@
-"""Collision module: every scan becomes a stop/slow/go verdict in the same loop turn."""
+"""Collision module: every scan becomes a stop/slow/go verdict in the same loop turn.
+
+With a fresh, confident pose the floor plan's walls place the front readings they explain
+(``perception/walls.py``); without one every reading keeps its whole arc, the safe side.
+"""
 
 from __future__ import annotations
 
@@ -6,10 +10,12 @@ import math
 from typing import ClassVar
 
 from coffeebot.config import RobotConfig
+from coffeebot.floorplan import FloorPlan
 from coffeebot.logs import Event, Transitions
-from coffeebot.messages import COLLISION, ODOMETRY, RANGE_SCAN, SafetyState
+from coffeebot.messages import COLLISION, CURRENT_STATE, ODOMETRY, RANGE_SCAN, SafetyState
 from coffeebot.modules.base import Module, ModuleContext
 from coffeebot.perception.collision import CollisionMonitor
+from coffeebot.perception.walls import Explainer, explainer
 
 ODOMETRY_STALE_S = 0.5
 """Odometry older than this is no speed: the monitor assumes the worst."""
@@ -19,12 +25,13 @@ class CollisionModule(Module):
     """Wraps :class:`CollisionMonitor`; speed comes from the latest odometry."""
 
     name = "collision"
-    inputs = (RANGE_SCAN, ODOMETRY)
+    inputs = (RANGE_SCAN, ODOMETRY, CURRENT_STATE)
     outputs = (COLLISION,)
     critical: ClassVar[bool] = True
 
-    def __init__(self, config: RobotConfig) -> None:
+    def __init__(self, config: RobotConfig, plan: FloorPlan) -> None:
         self.config = config
+        self.plan = plan
         self.monitor = self._new_monitor()
 
     def _new_monitor(self) -> CollisionMonitor:
@@ -35,6 +42,9 @@ class CollisionModule(Module):
             max_speed_mm_s=cfg.collision.unknown_speed_mm_s or cfg.motor.max_speed_mm_s,
             max_range_mm=cfg.tof.max_range_mm,
             body_width_mm=cfg.geometry.width_mm,
+            body_length_mm=cfg.geometry.length_mm,
+            tracking=cfg.tracking,
+            axle_x_mm=cfg.motor.axle_x_mm,
         )
 
     def _motion(self, ctx: ModuleContext) -> tuple[float | None, float]:
@@ -47,6 +57,14 @@ class CollisionModule(Module):
         yaw_rate = math.degrees((right - left) / self.config.motor.wheel_base_mm)
         return (left + right) / 2.0, yaw_rate
 
+    def _explainer(self, ctx: ModuleContext) -> Explainer | None:
+        """Wall explanations from the latest pose, if it is fresh and its heading good."""
+        state, age = ctx.board.latest(CURRENT_STATE), ctx.board.age(CURRENT_STATE)
+        if state is None or age is None or age > self.config.motion.stale_pose_s:
+            return None
+        pose = state.msg.pose
+        return explainer(self.plan.floor(pose.floor), pose, self.config.motion.wall_margin_mm)
+
     async def run(self, ctx: ModuleContext) -> None:
         # A restart forgets everything: back to "stop" until every face is clear again.
         self.monitor = self._new_monitor()
@@ -56,7 +74,9 @@ class CollisionModule(Module):
             async for envelope in scans:
                 # No await between reading the scan and publishing the verdict.
                 speed, yaw_rate = self._motion(ctx)
-                status = self.monitor.update(envelope.msg, speed, envelope.seq, yaw_rate)
+                status = self.monitor.update(
+                    envelope.msg, speed, envelope.seq, yaw_rate, self._explainer(ctx)
+                )
                 ctx.board.publish(COLLISION, status)
                 stopped = status.state is SafetyState.STOP
                 safety.update(

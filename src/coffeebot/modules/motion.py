@@ -60,6 +60,8 @@ class Gate:
     """Why it stops the robot; None when it lets the robot go (at a limit, or clear)."""
     may_rotate: bool = False
     """A front stop that still allows turning on the spot (the collision verdict's call)."""
+    may_creep_ahead: bool = False
+    """A side hold that still allows creeping straight ahead (the collision verdict's call)."""
 
     @property
     def stop(self) -> bool:
@@ -91,6 +93,7 @@ def safety_gate(
             f"collision stop: {verdict.reason}",
             StopCause.COLLISION_STOP,
             may_rotate=verdict.may_rotate,
+            may_creep_ahead=verdict.may_creep_ahead,
         )
     if verdict.state is SafetyState.SLOW:
         return Gate(verdict.speed_limit_mm_s, f"slow: {verdict.reason}")
@@ -124,7 +127,7 @@ class MotionModule(Module):
             axle_x_mm=config.motor.axle_x_mm,
         )
         self.costmap = LocalCostmap(
-            self.cfg, config.tof.sensors, self.footprint, config.tof.effective_half_fov_deg
+            self.cfg, config.tof.sensors, self.footprint, config.tof.cone_half_deg
         )
         self.controller = MotionController(self.cfg, plan, self.costmap, self.footprint)
         self.collision_health: HealthStatus | None = None
@@ -173,7 +176,7 @@ class MotionModule(Module):
             self.cfg.stale_safety_s,
         )
         state, age = ctx.board.latest(CURRENT_STATE), ctx.board.age(CURRENT_STATE)
-        if (not gate.stop or gate.may_rotate) and (
+        if (not gate.stop or gate.may_rotate or gate.may_creep_ahead) and (
             state is None
             or age is None
             or age > self.cfg.stale_pose_s
@@ -198,6 +201,17 @@ class MotionModule(Module):
                     command.status.instruction_id, now, reason, gate.cause
                 )
                 self._send(ctx.board, 0.0, command.yaw_rate_dps, reason, status)
+                return
+        if gate.stop and gate.may_creep_ahead and state is not None and ins is not None:
+            # Held by something beside the body, nothing ahead: straight on keeps the gap.
+            limit = self.config.collision.creep_ahead_mm_s
+            command = self.controller.step(ins, state.msg.pose, now, dt, limit)
+            if command.speed_mm_s > 0:
+                reason = f"creeping straight ahead; {gate.reason}"
+                status = self.controller.safety_status(
+                    command.status.instruction_id, now, reason, gate.cause
+                )
+                self._send(ctx.board, command.speed_mm_s, 0.0, reason, status)
                 return
         if gate.stop or state is None:
             self.controller.halt()

@@ -171,6 +171,8 @@ class TofPoller(Module):
                     status=m.status,
                     distance_mm=m.distance_mm if valid else None,
                     signal_rate_mcps=m.signal_rate_mcps,
+                    ambient_rate_mcps=m.ambient_rate_mcps,
+                    sigma_mm=m.sigma_mm,
                 )
             )
         return results
@@ -183,6 +185,9 @@ class TofPoller(Module):
             self.tof.timing_budget_ms,
             self.sample_period_ms,
         )
+        slot.driver.set_thresholds(self.tof.min_signal_mcps, self.tof.sigma_limit_mm)
+        size = slot.cfg.roi_spads
+        slot.driver.set_roi(slot.driver.centred_roi(size, size))
         slot.driver.start_ranging()
 
     async def _bring_up(

@@ -2,12 +2,15 @@
 
 *Static layer*: the floor plan's walls, known in advance. *Obstacle layer*: a rolling grid
 around the robot, marked and cleared from the time-of-flight readings the way sonar costmaps
-are: a VL53L1X reports the nearest return within its cone, so a reading marks the whole arc
-of the cone at that range as occupied and clears the cone in front of it (everything nearer
-is known free). Clearing uses the cone narrowed on each side by the heading's possible error:
-off by a few degrees (while turning, above all), the edge of the cone as placed would sweep
-cells the sensor did not look at. A reading the plan's walls explain (some ray of the cone,
-widened by ``wall_heading_tolerance_deg`` for the pose's heading error, meets a wall within
+are: a VL53L1X reading is the signal-weighted mean of what its cone sees, so the nearest
+thing is at most that far and may be anywhere across the cone: a reading marks the whole arc
+of the cone at that range as occupied and clears the cone in front of it (nearer, there is
+nothing the cone would have weighed more; a thin leg in front of a wall can still hide in
+the blend, which the collision rules, not the planner, answer for). Clearing uses the cone
+narrowed on each side by the heading's possible error: off by a few degrees (while turning,
+above all), the edge of the cone as placed would sweep cells the sensor did not look at. A
+reading the plan's walls explain (some ray of the cone, widened by
+``wall_heading_tolerance_deg`` for the pose's heading error, meets a wall within
 ``wall_margin_mm`` of the range) belongs to the static layer and marks nothing. Marks the
 robot does not see again expire after ``obstacle_memory_s``.
 
@@ -33,9 +36,9 @@ import numpy as np
 
 from coffeebot.config import MotionConfig, TofSensorConfig
 from coffeebot.floorplan import Floor, segment_distances
-from coffeebot.messages import RangeScan, ReadingStatus
-from coffeebot.perception.collision import NOTHING_IN_RANGE
+from coffeebot.messages import NOTHING_IN_RANGE, RangeScan, ReadingStatus
 from coffeebot.perception.geometry import sensor_origin
+from coffeebot.perception.walls import wall_ranges
 
 MAX_MARK_MM = 1500.0
 """Readings beyond this are too noisy to mark (seed 000: noise above ~1000 mm in mid mode)."""
@@ -43,22 +46,6 @@ MAX_MARK_MM = 1500.0
 EXPLAIN_RAYS = 15
 """Rays sampled across the widened cone when asking whether the plan's walls explain a
 reading: finer than the marking, since a grazing wall is met only near the cone's edge."""
-
-
-def expected_range_mm(floor: Floor, x_mm: float, y_mm: float, angles: np.ndarray) -> np.ndarray:
-    """Range from (x, y) to the first plan wall along each ray (inf where there is none)."""
-    seg = floor.segment_array
-    if seg.size == 0:
-        return np.full(np.shape(angles), math.inf)
-    dx, dy = np.cos(angles)[:, None], np.sin(angles)[:, None]
-    ex, ey = (seg[:, 2] - seg[:, 0])[None, :], (seg[:, 3] - seg[:, 1])[None, :]
-    wx, wy = (seg[:, 0] - x_mm)[None, :], (seg[:, 1] - y_mm)[None, :]
-    denom = dx * ey - dy * ex
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = (wx * ey - wy * ex) / denom
-        u = (wx * dy - wy * dx) / denom
-    hit = (np.abs(denom) > 1e-9) & (t > 0) & (u >= 0) & (u <= 1)
-    return np.where(hit, t, math.inf).min(axis=1)
 
 
 @dataclass(frozen=True)
@@ -199,7 +186,7 @@ class LocalCostmap:
                 self.clear_t[i, j] = now
             if distance is None or distance > MAX_MARK_MM:
                 continue
-            wall = expected_range_mm(floor, sx, sy, math.radians(look) + self._explain).min()
+            wall = wall_ranges(floor, sx, sy, math.radians(look) + self._explain).min()
             if wall <= distance + self.cfg.wall_margin_mm:
                 continue  # the plan's walls explain the reading
             angles = math.radians(look) + self._spread

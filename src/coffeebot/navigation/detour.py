@@ -28,9 +28,11 @@ REJOIN_MM = 100.0
 close to it; lane keeping turns at up to ``max_lane_angle_deg`` without looking at the walls,
 and from a detour lane beside the far wall that swings the rear corner into it."""
 
-WAIT_ROOM_MM = 200.0
+WAIT_ROOM_MM = 400.0
 """Room left beyond the planner's lethal zone where the robot waits in front of an obstacle,
-so the dynamic window can still turn away from it."""
+so it can still turn out and the dynamic window find arcs away from it. A thin thing in front
+of a far one reads up to ~150 mm beyond where it is (the sensor averages both returns), so
+its costmap cell, and the wait, are that much nearer than planned."""
 
 
 class Phase(StrEnum):

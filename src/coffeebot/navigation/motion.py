@@ -42,8 +42,8 @@ AIM_BEFORE_DRIVING_DEG = 10.0
 AIM_BEFORE_LANE_DEG = 45.0
 """``follow_lane`` facing further than this from the direction of travel turns on the spot."""
 
-DETOUR_TURNS_DEG = (30.0, 20.0, 10.0)
-"""Blocked close to a wide obstacle, the robot first turns on the spot this far from its
+DETOUR_TURNS_DEG = tuple(45.0 - 2.5 * k for k in range(17))
+"""Blocked close to an obstacle, the robot first turns on the spot this far from its
 direction of travel towards the detour lane (the furthest of these the walls allow: the rear
 swings out about the axle), from where the dynamic window finds arcs past it."""
 
@@ -290,6 +290,18 @@ class MotionController:
         remaining: float,
     ) -> Command:
         cap = min(target, self.cfg.approach_speed_mm_s, limit)
+        if limit <= 0.0:
+            # Held by something ahead (only turning allowed): arcs are not on offer, and the
+            # window would swing back towards the lane, into it. Turn out instead.
+            turn = self._turn_out(ins, floor, pose, lane, direction, now, dt, limit, remaining)
+            return turn or self._blocked(ins, now, dt, limit, remaining)
+        shift = abs(lane - floor.to_hallway(pose.x_mm, pose.y_mm)[1])
+        if self.speed < self.cfg.creep_speed_mm_s and shift > self.footprint.width_mm / 2:
+            # A wide shift from a standstill in front of the obstacle: the window's arcs from
+            # rest only creep towards it. Turn out on the spot first, as far as the walls let.
+            turn = self._turn_out(ins, floor, pose, lane, direction, now, dt, limit, remaining)
+            if turn is not None:
+                return turn
         choice = self.dwa.choose(
             self.costmap,
             floor,
@@ -305,28 +317,45 @@ class MotionController:
         if choice is None or (choice.speed_mm_s < 1.0 and abs(choice.yaw_rate_dps) < 1.0):
             # Every arc from here meets the obstacle, or none does better than standing: the
             # window is too small to swing out from a standstill close to a wide obstacle.
-            # Turn on the spot towards the detour lane first, if that turn is free.
-            side = math.copysign(
-                1.0, (lane - floor.to_hallway(pose.x_mm, pose.y_mm)[1]) * direction
-            )
-            travel = floor.hallway.heading_deg + (0.0 if direction > 0 else 180.0)
-            for angle in DETOUR_TURNS_DEG:
-                aim = travel + side * angle
-                further_out = wrap_deg(aim - pose.heading_deg) * side
-                if further_out > self.cfg.heading_tolerance_deg and (
-                    self._turn_is_free(pose, aim, now)
-                ):
-                    status = self._status(
-                        ins.id, MotionState.AVOIDING, now, remaining, "turning out to go around"
-                    )
-                    rate = self._turn_rate(pose.heading_deg, aim)
-                    return self._command(0.0, rate, dt, status, limit)
-            status = self._status(ins.id, MotionState.BLOCKED, now, remaining, "no way past")
-            return self._command(0.0, 0.0, dt, status, limit)
+            turn = self._turn_out(ins, floor, pose, lane, direction, now, dt, limit, remaining)
+            return turn or self._blocked(ins, now, dt, limit, remaining)
         status = self._status(ins.id, MotionState.AVOIDING, now, remaining, "going around")
         self.speed = min(choice.speed_mm_s, limit)
         self.yaw_rate = choice.yaw_rate_dps
         return Command(self.speed, self.yaw_rate, status)
+
+    def _turn_out(
+        self,
+        ins: MoveInstruction,
+        floor: Floor,
+        pose: PoseEstimate,
+        lane: float,
+        direction: float,
+        now: float,
+        dt: float,
+        limit: float,
+        remaining: float,
+    ) -> Command | None:
+        """Turn on the spot towards the detour lane, the furthest of ``DETOUR_TURNS_DEG`` the
+        costmap allows; None if no turn further out than the heading is free."""
+        side = math.copysign(1.0, (lane - floor.to_hallway(pose.x_mm, pose.y_mm)[1]) * direction)
+        travel = floor.hallway.heading_deg + (0.0 if direction > 0 else 180.0)
+        for angle in DETOUR_TURNS_DEG:
+            aim = travel + side * angle
+            further_out = wrap_deg(aim - pose.heading_deg) * side
+            if further_out > self.cfg.heading_tolerance_deg and self._turn_is_free(pose, aim, now):
+                status = self._status(
+                    ins.id, MotionState.AVOIDING, now, remaining, "turning out to go around"
+                )
+                rate = self._turn_rate(pose.heading_deg, aim)
+                return self._command(0.0, rate, dt, status, limit)
+        return None
+
+    def _blocked(
+        self, ins: MoveInstruction, now: float, dt: float, limit: float, remaining: float
+    ) -> Command:
+        status = self._status(ins.id, MotionState.BLOCKED, now, remaining, "no way past")
+        return self._command(0.0, 0.0, dt, status, limit)
 
     def _turn_is_free(self, pose: PoseEstimate, aim_deg: float, now: float) -> bool:
         """Whether turning on the spot (about the axle) from the pose's heading to

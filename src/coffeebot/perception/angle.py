@@ -179,7 +179,13 @@ class AngleEstimator:
             self._window = _Window(zone.id)
         frame = TravelFrame.for_heading(floor, pose.heading_deg)
         prior = frame.angle_deg(pose.heading_deg)
-        distances = {r.sensor: valid_distance(r) for r in scan.readings}
+        # A reading the chip is unsure of (a weak or blended return) is no wall to measure.
+        distances = {
+            r.sensor: valid_distance(r)
+            if r.sigma_mm is None or r.sigma_mm <= cfg.max_sigma_mm
+            else None
+            for r in scan.readings
+        }
         found: dict[Side, tuple[float, float]] = {}
         reasons: list[str] = []
         for side, pair in self.pairs.items():

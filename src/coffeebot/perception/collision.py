@@ -26,6 +26,23 @@ the distance, and the memory is short.
 
 Side readings measure the gap from the body directly (the sensors sit on the body's sides),
 and so do front readings, so the radii apply to the raw distances.
+
+A front reading is judged by where it can lie: somewhere on the arc its cone spans at that
+range. Only the part of the arc inside the corridor the body sweeps driving ahead (its width
+plus ``corridor_margin_mm`` each side) is in the way, at its distance ahead of the front face;
+a toed-out outer sensor's glance off a side wall outside the corridor is not. A reading of
+the VL53L1X is the signal-weighted mean of what its cone sees, so the nearest thing in the
+arc is at most that far: the rule stays on the safe side of a blend.
+
+Things moving into the way are seen before they are in it by :class:`ReturnTracker`: a mover
+predicted inside the corridor ahead of the body stops the robot when the robot could not
+stop short of where it enters, and slows it when it could only at a lower speed.
+
+Held, the robot gets two ways out. A stop whose only cause is something ahead (no fault,
+sides clear, nothing coming nearer) may turn on the spot (``may_rotate``). A stop whose only
+cause is something within the side radius, with nothing ahead, may creep straight ahead
+(``may_creep_ahead``): driving straight keeps the side gap, and nothing turns a corner into
+it.
 """
 
 from __future__ import annotations
@@ -34,21 +51,44 @@ import math
 from collections.abc import Iterable
 from dataclasses import dataclass
 
-from coffeebot.config import CollisionConfig, TofSensorConfig
-from coffeebot.messages import CollisionStatus, RangeReading, RangeScan, ReadingStatus, SafetyState
-from coffeebot.perception.geometry import valid_distance
+import numpy as np
 
-NOTHING_IN_RANGE = frozenset({ReadingStatus.NO_TARGET, ReadingStatus.OUT_OF_BOUNDS})
-"""Statuses meaning "no target within range": the face is clear, not blind."""
+from coffeebot.config import CollisionConfig, TofSensorConfig, TrackingConfig
+from coffeebot.messages import (
+    NOTHING_IN_RANGE,
+    CollisionStatus,
+    RangeReading,
+    RangeScan,
+    ReadingStatus,
+    SafetyState,
+)
+from coffeebot.perception.geometry import valid_distance
+from coffeebot.perception.tracking import Intrusion, ReturnTracker
+from coffeebot.perception.walls import Explainer
 
 FAILED = frozenset({ReadingStatus.HARDWARE_FAIL, ReadingStatus.BUS_ERROR})
 """Statuses meaning the sensor itself is broken: stop at once, do not wait for staleness."""
 
 _RANK = {SafetyState.GO: 0, SafetyState.SLOW: 1, SafetyState.STOP: 2}
 
+CLEARANCE_SMOOTHING = 0.2
+"""Weight of each new scan in the smoothed front clearance that ``may_rotate`` watches."""
+
+PATH_STEP_MM = 25.0
+PATH_REACH_MM = 2500.0
+"""Along a curved path the body is swept this far, in these steps, to find what it meets."""
+MIN_CURVATURE_PER_MM = 1e-5
+"""Flatter than this (a 100 m radius) the path is straight ahead."""
+MIN_ARC_SPEED_MM_S = 50.0
+"""Slower than this the path is judged straight: turning on the spot is ``may_rotate``'s."""
+
+ARC_SAMPLES = 9
+"""Points along a front reading's arc when asking which part of it is in the corridor."""
+
 ROTATE_NOISE_MM = 10.0
 """How much the front clearance may read below its value at the start of a stop and still
-count as not decreasing while turning on the spot: two readings' noise (+/-5 mm each)."""
+count as not decreasing while turning on the spot: two readings' noise (+/-5 mm each) up
+close; a reading that reports a larger sigma (a blend, a dark target) gets twice that."""
 
 
 @dataclass(frozen=True)
@@ -73,6 +113,12 @@ class _Finding:
     distance_mm: int | None
     reason: str
     speed_limit_mm_s: float
+    gap_mm: float | None = None
+    """How far it is from where the body meets it: ahead of the front face, or off a side."""
+    moving: bool = False
+    """A tracked mover's predicted entry into the corridor, not a reading."""
+    sigma_mm: float = 0.0
+    """The sigma the sensor reported with its reading (0 when it said none)."""
 
 
 def stop_distance_mm(cfg: CollisionConfig, speed_mm_s: float) -> float:
@@ -105,11 +151,19 @@ class CollisionMonitor:
         max_speed_mm_s: float,
         max_range_mm: int = 4000,
         body_width_mm: float = 510.0,
+        body_length_mm: float = 610.0,
+        tracking: TrackingConfig | None = None,
+        axle_x_mm: float = 150.0,
     ) -> None:
         self.cfg = cfg
         self.sensors = {s.id: s for s in sensors}
         self.max_speed_mm_s = max_speed_mm_s
         self.max_range_mm = max_range_mm
+        self.half_width_mm = body_width_mm / 2.0
+        self.front_mm = body_length_mm / 2.0
+        self.axle_x_mm = axle_x_mm
+        self._front_sweep_mm = math.hypot(self.front_mm - axle_x_mm, self.half_width_mm)
+        """How far from the axle the front corners reach when the body turns on the spot."""
         self.state = SafetyState.STOP
         """Seed rule: the robot starts in "stop" and only goes once every face is clear."""
         self._missed = dict.fromkeys(self.sensors, cfg.stale_cycles)
@@ -121,12 +175,73 @@ class CollisionMonitor:
             if s.face == "front"
         }
         """Per front sensor: the range within which its whole cone lies inside the body's width."""
+        self._arcs = {
+            s.id: np.radians(s.yaw_deg + np.linspace(-s.fov_deg / 2, s.fov_deg / 2, ARC_SAMPLES))
+            for s in self.sensors.values()
+            if s.face == "front"
+        }
+        self.tracker = ReturnTracker(self.sensors.values(), tracking or TrackingConfig())
         self._memory: dict[int, _Sighting] = {}
         self._travel_mm = 0.0
         self._turned_deg = 0.0
         self._last_t: float | None = None
         self._stop_clearance: float | None = None
         """The front clearance when the current front stop began."""
+        self._clearance_ema: float | None = None
+        """The front clearance smoothed over scans (a noisy blend jitters by tens of mm)."""
+        self._side_gap: float | None = None
+        """The side gap when the current side hold began."""
+
+    def ahead_mm(
+        self,
+        sensor: TofSensorConfig,
+        distance: float,
+        where: np.ndarray | None = None,
+        curvature_per_mm: float = 0.0,
+    ) -> float | None:
+        """How far the body can drive on along its present arc (``curvature_per_mm``, left
+        positive; 0: straight ahead) before a front reading is in its way (None: never
+        within ``PATH_REACH_MM``, so it is not in the way). The reading lies somewhere on the
+        arc its cone spans, or at robot-frame points ``where`` (k, 2) when the plan's walls
+        explain it."""
+        if where is None:
+            angles = self._arcs[sensor.id]
+            xs = sensor.x_mm + distance * np.cos(angles)
+            ys = sensor.y_mm + distance * np.sin(angles)
+            margin = self.cfg.corridor_margin_mm
+        else:
+            # A wall return is where the plan says: only the seed's side radius is kept.
+            xs, ys = where[:, 0], where[:, 1]
+            margin = self.cfg.side_radius_mm
+        half = self.half_width_mm + margin
+        if abs(curvature_per_mm) < MIN_CURVATURE_PER_MM:
+            inside = np.abs(ys) <= half
+            if not inside.any():
+                return None
+            return max(0.0, float(xs[inside].min()) - self.front_mm)
+        # Along an arc the body turns about its driven axle: sweep it in steps of the axle's
+        # travel and find the first pose whose rectangle (widened by the margin) holds a point.
+        k, a = curvature_per_mm, self.axle_x_mm
+        travel = np.arange(0.0, PATH_REACH_MM, PATH_STEP_MM)[:, None]  # (S, 1)
+        turn = k * travel
+        cos, sin = np.cos(turn), np.sin(turn)
+        cx = a + np.sin(turn) / k - a * cos
+        cy = (1.0 - np.cos(turn)) / k - a * sin
+        dx, dy = xs[None, :] - cx, ys[None, :] - cy  # (S, K)
+        along = cos * dx + sin * dy
+        across = -sin * dx + cos * dy
+        hit = (np.abs(along) <= self.front_mm) & (np.abs(across) <= half)
+        steps = np.flatnonzero(hit.any(axis=1))
+        return float(travel[steps[0], 0]) if len(steps) else None
+
+    def beyond_front_sweep(self, sensor: TofSensorConfig, distance: float) -> bool:
+        """Whether every point of a front reading's arc is out of reach of the front corners
+        turning on the spot (with ``corridor_margin_mm`` to spare)."""
+        angles = self._arcs[sensor.id]
+        xs = sensor.x_mm + distance * np.cos(angles) - self.axle_x_mm
+        ys = sensor.y_mm + distance * np.sin(angles)
+        reach = self._front_sweep_mm + self.cfg.corridor_margin_mm
+        return bool(np.hypot(xs, ys).min() > reach)
 
     def _recall(self, sensor: TofSensorConfig, now: float) -> tuple[float, _Sighting] | None:
         """The remembered return of ``sensor`` and its distance now, unless it has expired."""
@@ -184,7 +299,11 @@ class CollisionMonitor:
         speed: float,
         narrow: bool,
         now: float,
+        wall: np.ndarray | None,
+        curvature_per_mm: float,
     ) -> _Finding:
+        """``wall``: where the plan's walls put this sensor's reading, if they explain it;
+        ``curvature_per_mm``: the arc the robot is driving."""
         cfg = self.cfg
         if reading is not None and (not reading.healthy or reading.status in FAILED):
             self._missed[sensor.id] = cfg.stale_cycles
@@ -203,7 +322,7 @@ class CollisionMonitor:
                 SafetyState.STOP,
                 sensor,
                 None,
-                f"sensor {sensor.id} stale: no valid reading for {self._missed[sensor.id]} scans",
+                f"sensor {sensor.id} stale: no reading for {self._missed[sensor.id]} scans",
                 0.0,
             )
         seen = ""
@@ -215,6 +334,12 @@ class CollisionMonitor:
             seen = f" (seen {now - recalled[1].t_s:.1f} s ago)"
         if distance is None or distance > self.max_range_mm:
             return _Finding(SafetyState.GO, sensor, None, "clear", self.max_speed_mm_s)
+        gap: float = distance
+        if sensor.face == "front":
+            ahead = self.ahead_mm(sensor, distance, None if seen else wall, curvature_per_mm)
+            if ahead is None:  # a glance outside the corridor: not in the way
+                return _Finding(SafetyState.GO, sensor, None, "clear", self.max_speed_mm_s)
+            gap = ahead
         # Leaving a zone needs extra clearance: the thresholds grow while we are inside it.
         margin = cfg.narrow_margin_mm if narrow else 0.0
         stop_at = self._radius(sensor.face, speed) + margin
@@ -224,19 +349,68 @@ class CollisionMonitor:
         if self.state is not SafetyState.GO:
             slow_at += cfg.hysteresis_mm
         what = f"{sensor.face} {'narrow ' if narrow else ''}obstacle at {distance} mm{seen}"
-        if distance < stop_at:
+        sigma = (reading.sigma_mm if reading is not None else None) or 0.0
+        if gap < stop_at:
             reason = f"{what}, stop distance {stop_at:.0f} mm"
-            return _Finding(SafetyState.STOP, sensor, distance, reason, 0.0)
-        if distance < slow_at:
+            return _Finding(SafetyState.STOP, sensor, distance, reason, 0.0, gap, sigma_mm=sigma)
+        if gap < slow_at:
             # Slow enough to stop before the seed's radius (plus any narrow margin), so the
             # robot creeps up to it.
-            room = distance - cfg.front_radius_mm - cfg.hysteresis_mm - margin
+            room = gap - cfg.front_radius_mm - cfg.hysteresis_mm - margin
             limit = max(cfg.min_slow_speed_mm_s, safe_speed_mm_s(cfg, room))
             reason = f"{what}, slowing"
             return _Finding(
-                SafetyState.SLOW, sensor, distance, reason, min(limit, self.max_speed_mm_s)
+                SafetyState.SLOW,
+                sensor,
+                distance,
+                reason,
+                min(limit, self.max_speed_mm_s),
+                gap,
+                sigma_mm=sigma,
             )
-        return _Finding(SafetyState.GO, sensor, distance, "clear", self.max_speed_mm_s)
+        return _Finding(
+            SafetyState.GO, sensor, distance, "clear", self.max_speed_mm_s, gap, sigma_mm=sigma
+        )
+
+    def _explained(
+        self, readings: dict[int, RangeReading], explain: Explainer | None
+    ) -> dict[int, np.ndarray]:
+        """Per sensor, where the plan's walls put its valid reading, if they explain it."""
+        if explain is None:
+            return {}
+        found = {}
+        for sensor in self.sensors.values():
+            distance = valid_distance(readings.get(sensor.id))
+            if distance is not None:
+                points = explain(sensor, distance)
+                if points is not None:
+                    found[sensor.id] = points
+        return found
+
+    def _intrusion(self, speed: float) -> _Finding | None:
+        """A mover predicted in the corridor ahead: stop if the robot could not stop short of
+        where it enters, slow to a speed that could."""
+        cfg = self.cfg
+        horizon = (
+            cfg.reaction_latency_s + max(0.0, speed) / cfg.braking_mm_s2
+        ) + self.tracker.cfg.horizon_s
+        found: Intrusion | None = self.tracker.intrusion(
+            max(0.0, speed), self.front_mm, self.half_width_mm, horizon
+        )
+        if found is None:
+            return None
+        front = next(s for s in self.sensors.values() if s.face == "front")
+        what = (
+            f"someone moving into the way {found.ahead_mm:.0f} mm ahead in {found.time_s:.1f} s "
+            f"({found.speed_mm_s:.0f} mm/s)"
+        )
+        stop_at = stop_distance_mm(cfg, speed) + cfg.hysteresis_mm
+        if found.ahead_mm < stop_at:
+            return _Finding(SafetyState.STOP, front, None, what, 0.0, found.ahead_mm, True)
+        limit = max(cfg.min_slow_speed_mm_s, safe_speed_mm_s(cfg, found.ahead_mm - stop_at))
+        return _Finding(
+            SafetyState.SLOW, front, None, f"{what}, slowing", limit, found.ahead_mm, True
+        )
 
     def update(
         self,
@@ -244,9 +418,11 @@ class CollisionMonitor:
         speed_mm_s: float | None,
         scan_seq: int,
         yaw_rate_dps: float = 0.0,
+        explain: Explainer | None = None,
     ) -> CollisionStatus:
         """The verdict for ``scan`` at forward speed ``speed_mm_s`` (None: unknown, assume max)
-        while turning at ``yaw_rate_dps``."""
+        while turning at ``yaw_rate_dps``; ``explain`` places readings the floor plan's walls
+        explain (given only with a pose to trust)."""
         speed = self.max_speed_mm_s if speed_mm_s is None else speed_mm_s
         now = scan.cycle_start_s
         if self._last_t is not None and now > self._last_t:
@@ -254,28 +430,41 @@ class CollisionMonitor:
             self._turned_deg += abs(yaw_rate_dps) * (now - self._last_t)
         self._last_t = now
         readings = {r.sensor: r for r in scan.readings}
+        walls = self._explained(readings, explain)
+        # What the plan's walls explain is a wall, not someone walking: it is not tracked.
+        self.tracker.update(
+            scan, 0.0 if speed_mm_s is None else speed_mm_s, yaw_rate_dps, skip=set(walls)
+        )
         narrow = self.narrow(readings)
+        curvature = 0.0
+        if speed >= MIN_ARC_SPEED_MM_S:
+            curvature = math.radians(yaw_rate_dps) / speed
         findings = [
-            self._assess(s, readings.get(s.id), speed, s.id in narrow, now)
+            self._assess(
+                s, readings.get(s.id), speed, s.id in narrow, now, walls.get(s.id), curvature
+            )
             for s in self.sensors.values()
         ]
+        intrusion = self._intrusion(speed)
+        if intrusion is not None:
+            findings.append(intrusion)
         worst = max(
             findings,
             key=lambda f: (
                 _RANK[f.state],
                 -f.speed_limit_mm_s,
-                -(f.distance_mm if f.distance_mm is not None else math.inf),
+                -(f.gap_mm if f.gap_mm is not None else math.inf),
             ),
         )
         previous, self.state = self.state, worst.state
         front = [
-            f.distance_mm
+            (f.distance_mm, f.sigma_mm)
             for f in findings
-            if f.sensor.face == "front" and f.distance_mm is not None
+            if f.sensor.face == "front" and f.distance_mm is not None and not f.moving
         ]
-        clearance = min(front) if front else None
+        clearance, clearance_sigma = min(front) if front else (None, 0.0)
         if worst.state is SafetyState.GO:
-            self._stop_clearance = None
+            self._stop_clearance = self._side_gap = None
             reason = "clear again" if previous is not SafetyState.GO else "clear"
             return CollisionStatus(
                 state=SafetyState.GO,
@@ -285,32 +474,68 @@ class CollisionMonitor:
                 front_clearance_mm=clearance,
             )
         stops = [f for f in findings if f.state is SafetyState.STOP]
-        faces = tuple(sorted({f.sensor.face for f in stops if f.distance_mm is not None}))
-        may_rotate = self._may_rotate(stops, faces, clearance)
+        faces = tuple(
+            sorted({f.sensor.face for f in stops if f.distance_mm is not None and not f.moving})
+        )
         return CollisionStatus(
             state=worst.state,
             scan_seq=scan_seq,
             face=worst.sensor.face,
-            sensor=worst.sensor.id,
+            sensor=None if worst.moving else worst.sensor.id,
             distance_mm=worst.distance_mm,
             reason=worst.reason,
             speed_limit_mm_s=worst.speed_limit_mm_s,
             blocked_faces=faces,
             front_clearance_mm=clearance,
-            may_rotate=may_rotate,
+            may_rotate=self._may_rotate(stops, faces, clearance, clearance_sigma),
+            may_creep_ahead=self._may_creep(stops, faces, findings),
         )
 
     def _may_rotate(
-        self, stops: list[_Finding], faces: tuple[str, ...], clearance: int | None
+        self,
+        stops: list[_Finding],
+        faces: tuple[str, ...],
+        clearance: int | None,
+        sigma_mm: float,
     ) -> bool:
         """Turning on the spot is allowed only while every stop is an obstacle on the front
-        face (no sensor fault, sides clear) and the front clearance has not fallen since the
-        stop began: a turn that brings the front nearer, or anything coming closer, ends it."""
+        face (no sensor fault, no mover, sides clear) and either everything in the way is
+        out of the front corners' reach, or the (smoothed) front clearance has not fallen
+        since the stop began: a turn that brings the front nearer, or anything coming
+        closer, ends it."""
         front_only = bool(stops) and faces == ("front",)
-        front_only = front_only and all(f.distance_mm is not None for f in stops)
+        front_only = front_only and all(f.distance_mm is not None and not f.moving for f in stops)
         if not front_only or clearance is None:
-            self._stop_clearance = None
+            self._stop_clearance = self._clearance_ema = None
             return False
+        ema = self._clearance_ema
+        ema = clearance if ema is None else ema + CLEARANCE_SMOOTHING * (clearance - ema)
+        self._clearance_ema = ema
         if self._stop_clearance is None:
-            self._stop_clearance = clearance
-        return clearance >= self._stop_clearance - ROTATE_NOISE_MM
+            self._stop_clearance = ema
+        out_of_reach = all(
+            f.sensor.face == "front"
+            and f.distance_mm is not None
+            and self.beyond_front_sweep(f.sensor, f.distance_mm)
+            for f in stops
+        )
+        return out_of_reach or ema >= self._stop_clearance - max(ROTATE_NOISE_MM, 2.0 * sigma_mm)
+
+    def _may_creep(
+        self, stops: list[_Finding], faces: tuple[str, ...], findings: list[_Finding]
+    ) -> bool:
+        """Creeping straight ahead is allowed while every stop is something within a side
+        radius (no fault, no mover), nothing is in the way ahead, and the side gap has not
+        shrunk since the hold began."""
+        sides_only = bool(stops) and all(face in ("left", "right") for face in faces)
+        sides_only = sides_only and all(f.distance_mm is not None and not f.moving for f in stops)
+        ahead_clear = all(
+            f.state is SafetyState.GO for f in findings if f.sensor.face in ("front", "rear")
+        )
+        if not sides_only or not ahead_clear:
+            self._side_gap = None
+            return False
+        gap = min(float(f.distance_mm or 0) for f in stops)
+        if self._side_gap is None:
+            self._side_gap = gap
+        return gap >= self._side_gap - ROTATE_NOISE_MM

@@ -7,19 +7,19 @@ door spans ``door_width / (speed / scan_rate)`` readings.
 
 Beyond the seed: every reading is stored with where its ray met the wall along the hallway
 (from the pose at the time), so a detection is turned into a position. The seed's rule finds
-the rising edge (the split of the window with the largest step); the same rule mirrored finds
-the falling edge where the wall comes back, and the door's centre is the midpoint of the two.
-A cone reporting the nearest return blurs both edges inwards by the same amount (its
-footprint on the wall, ~210 mm at 890 mm for a 27 degree cone, and less or more depending on
-how much of the cone a weak target must fill), so the midpoint is free of that bias whatever
-the cone's true ranging behaviour; a single edge would need the footprint correction, which
-is only as good as the ranging model. The price is a later event: the door is reported once
-the sensor has passed it. If the wall does not come back within ``max_feature_mm`` (a wide
-opening, a missed edge), the near edge alone is used with the footprint correction and the
-plan's width. The centre is matched to the floor plan's doors and openings on that side,
-which names the room and tells how far the robot's along-hallway position is off. A much
-larger step than a recess is an opening or an open door. Detections of the same door by the
-second sensor on the side are merged.
+the rising edge (the split of the window with the largest step); the same rule mirrored
+finds the falling edge where the wall comes back, and the door's centre is the midpoint of
+the two. A cone blurs both edges by the same amount (a signal-weighted reading ramps from
+the wall to the recess as the edge crosses the cone's footprint, ~210 mm at 890 mm for a 27
+degree cone, and the near wall weighs more than the deeper recess), so the midpoint is free
+of that bias whatever the cone's true ranging behaviour; a single edge would need the
+footprint correction, which is only as good as the ranging model. The price is a later
+event: the door is reported once the sensor has passed it. If the wall does not come back
+within ``max_feature_mm`` (a wide opening, a missed edge), the near edge alone is used with
+the footprint correction and the plan's width. The centre is matched to the floor plan's
+doors and openings on that side, which names the room and tells how far the robot's along-
+hallway position is off. A much larger step than a recess is an opening or an open door.
+Detections of the same door by the second sensor on the side are merged.
 """
 
 from __future__ import annotations
@@ -34,7 +34,14 @@ import numpy as np
 
 from coffeebot.config import DoorConfig, TofSensorConfig
 from coffeebot.floorplan import Door, Floor, Opening, Side
-from coffeebot.messages import DoorEvent, PoseEstimate, RangeReading, RangeScan, ReadingStatus
+from coffeebot.messages import (
+    NOTHING_IN_RANGE,
+    DoorEvent,
+    PoseEstimate,
+    RangeReading,
+    RangeScan,
+    ReadingStatus,
+)
 from coffeebot.perception.geometry import TravelFrame, sensor_origin
 
 MIN_VISIBLE_MM = 200.0
@@ -46,9 +53,9 @@ def readings_per_door(
 ) -> int:
     """How many readings one door spans at this speed and scan rate (clamped to the config).
 
-    ``visible_mm`` is the stretch over which the sensor actually reads the recess: a sensor
-    reporting the nearest return in its cone sees the door only once the whole cone is past
-    the edge, so a far wall shortens it (default: the whole door width).
+    ``visible_mm`` is the stretch over which the sensor actually reads the recess: the cone's
+    footprint on the wall blurs both edges, so a far wall shortens it (default: the whole
+    door width).
     """
     width = cfg.door_width_mm if visible_mm is None else visible_mm
     step = abs(speed_mm_s) / scan_rate_hz
@@ -148,7 +155,7 @@ class DoorDetector:
     ) -> None:
         self.cfg = cfg
         self.half_fov_deg = half_fov_deg
-        """The ranging model: a reading is the nearest return within this of the axis."""
+        """Half the sensors' cone: how far a recess edge blurs across the wall it is on."""
         self.target_room = target_room
         self.tracks = {
             s.id: _Track(s, 2 * cfg.max_readings_per_door)
@@ -170,7 +177,7 @@ class DoorDetector:
             return None
         if reading.status is ReadingStatus.VALID and reading.distance_mm is not None:
             return float(min(reading.distance_mm, self.cfg.max_side_distance_mm))
-        if reading.status in (ReadingStatus.NO_TARGET, ReadingStatus.OUT_OF_BOUNDS):
+        if reading.status in NOTHING_IN_RANGE:
             return self.cfg.max_side_distance_mm
         return None
 

@@ -85,7 +85,7 @@ def robot_modules(
         TofPoller(config.i2c, config.tof, open_i2c),
         UwbReader(config.uwb),
         MotorDriver(config.motor),
-        CollisionModule(config),
+        CollisionModule(config, plan),
         AngleModule(config, plan),
         DoorModule(config, plan),
         StateModule(config, plan, start=start),

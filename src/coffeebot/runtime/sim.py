@@ -9,7 +9,7 @@ import tempfile
 from collections.abc import AsyncIterator, Callable, Sequence
 from pathlib import Path
 
-from coffeebot.clock import ScaledClock
+from coffeebot.clock import Clock, MonotonicClock, SteppedClock
 from coffeebot.config import RobotConfig
 from coffeebot.floorplan import FloorPlan
 from coffeebot.messages import PoseEstimate
@@ -46,7 +46,7 @@ async def build_sim(
     context is open. The order store lives in ``state_dir`` (the demo's orders survive a
     restart), or without one in a temporary directory (each run starts with an empty
     queue)."""
-    clock = ScaledClock(setup.speed)
+    clock: Clock = MonotonicClock() if setup.wall_clock else SteppedClock(setup.speed)
     world = World(
         plan,
         RobotSpec.from_config(config),

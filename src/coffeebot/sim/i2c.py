@@ -5,7 +5,10 @@ The bus offers the calls :class:`coffeebot.hardware.i2c.I2CBus` lists, taking re
 level of I2C messages and registers: a sensor on a channel the mux has not enabled does not
 answer (``OSError`` EREMOTEIO, what a Pi reports for a NACK), a sensor not ranging never
 signals data ready, a result read before data ready is the previous one, and a sensor whose
-interrupt is not cleared keeps its old sample.
+interrupt is not cleared keeps its old sample. Each sample is ranged through the region of
+interest, distance mode, timing budget and thresholds the chip's registers hold at that
+moment (``sim/world/tof.py`` is the physics), and lands in the result registers the real
+chip fills: status, distance, signal and ambient rates, sigma and the SPAD count.
 
 Faults are attributes set from the test: ``SimI2CBus.timeout``, ``SimTCA9548A.nack`` /
 ``frozen``, ``SimVL53L1X.nack`` / ``forced_status`` / ``model_id`` / ``halt()``.
@@ -13,29 +16,42 @@ Faults are attributes set from the test: ``SimI2CBus.timeout``, ``SimTCA9548A.na
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import errno
 import os
-import random
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import Protocol
 
+import numpy as np
 from smbus2 import i2c_msg
 
 from coffeebot.hardware import vl53l1x as chip
 from coffeebot.hardware.i2c import I2C_M_RD
 from coffeebot.hardware.tca9548a import CHANNELS
 from coffeebot.hardware.tca9548a import DEFAULT_ADDRESS as MUX_ADDRESS
-from coffeebot.hardware.vl53l1x import RANGE_STATUS
+from coffeebot.hardware.vl53l1x import SpadRoi
 from coffeebot.messages import ReadingStatus
-from coffeebot.sim.world.tof import ToFReading
+from coffeebot.sim.world.tof import (
+    ConeOptics,
+    RangingNoise,
+    RangingSetup,
+    Returns,
+    flat_target,
+    range_once,
+)
 
-DistanceFn = Callable[[int], float | ToFReading | None]
-"""What the sensor on a mux channel sees: a true distance in mm (the chip model adds noise and
-the status), None when nothing is in view, or a finished reading with its own status and
-noise (the world's ToF model)."""
+Scene = Callable[[int, SpadRoi], Returns]
+"""What the sensor on a mux channel collects through a region of interest (the world's
+optics, or :func:`targets_at` for hand-made tests)."""
+
+
+def targets_at(distances: Callable[[int], float | None], optics: ConeOptics | None = None) -> Scene:
+    """A scene of white cards square-on at ``distances(channel)`` mm (None: nothing)."""
+    cone = optics or ConeOptics()
+    return lambda channel, roi: flat_target(distances(channel), cone, roi)
 
 
 def nack(address: int) -> OSError:
@@ -45,6 +61,9 @@ def nack(address: int) -> OSError:
 class SimI2CDevice(Protocol):
     """A chip as the bus sees it: one call per I2C message, raising OSError for a NACK."""
 
+    @property
+    def address(self) -> int: ...
+
     def write(self, data: bytes) -> None: ...
 
     def read(self, length: int) -> bytes: ...
@@ -52,32 +71,39 @@ class SimI2CDevice(Protocol):
 
 class SimI2CBus:
     """The upstream bus. Muxes attached to it route addresses they do not own to the devices
-    on their enabled channels."""
+    on their enabled channels. ``hold`` is entered around every transfer: the simulator
+    passes its clock's, so the Python the simulated chips run takes no simulated time."""
 
-    def __init__(self) -> None:
+    def __init__(
+        self, hold: Callable[[], contextlib.AbstractContextManager[None]] | None = None
+    ) -> None:
         self.devices: dict[int, SimI2CDevice] = {}
         self.muxes: list[SimTCA9548A] = []
         self.timeout = False
+        self._hold = hold or contextlib.nullcontext
 
-    def attach(self, address: int, device: SimI2CDevice) -> None:
-        self.devices[address] = device
+    def attach(self, device: SimI2CDevice) -> None:
+        self.devices[device.address] = device
         if isinstance(device, SimTCA9548A):
             self.muxes.append(device)
 
     def i2c_rdwr(self, *msgs: i2c_msg) -> None:
-        for msg in msgs:
-            device = self._route(msg.addr)
-            if msg.flags & I2C_M_RD:
-                data = device.read(msg.len)
-                ctypes.memmove(msg.buf, data, msg.len)
-            else:
-                device.write(bytes(msg))
+        with self._hold():
+            for msg in msgs:
+                device = self._route(msg.addr)
+                if msg.flags & I2C_M_RD:
+                    data = device.read(msg.len)
+                    ctypes.memmove(msg.buf, data, msg.len)
+                else:
+                    device.write(bytes(msg))
 
     def write_byte(self, i2c_addr: int, value: int) -> None:
-        self._route(i2c_addr).write(bytes([value]))
+        with self._hold():
+            self._route(i2c_addr).write(bytes([value]))
 
     def read_byte(self, i2c_addr: int) -> int:
-        return self._route(i2c_addr).read(1)[0]
+        with self._hold():
+            return self._route(i2c_addr).read(1)[0]
 
     def close(self) -> None:
         """Nothing to release; present because smbus2.SMBus has it."""
@@ -100,6 +126,10 @@ class _WiredAnd:
     def __init__(self, devices: list[SimI2CDevice]) -> None:
         self.devices = devices
 
+    @property
+    def address(self) -> int:
+        return self.devices[0].address
+
     def write(self, data: bytes) -> None:
         for dev in self.devices:
             dev.write(data)
@@ -116,14 +146,19 @@ class SimTCA9548A:
     """The switch: a single control register, bit N connects channel N downstream."""
 
     def __init__(self, address: int = MUX_ADDRESS) -> None:
-        self.address = address
+        self._address = address
         self.mask = 0x00
-        self.channels: list[dict[int, SimI2CDevice]] = [{} for _ in range(CHANNELS)]
+        self.channels: list[list[SimI2CDevice]] = [[] for _ in range(CHANNELS)]
         self.nack = False
         self.frozen = False  # fault: acknowledges writes but keeps the old selection
 
-    def attach(self, channel: int, address: int, device: SimI2CDevice) -> None:
-        self.channels[channel][address] = device
+    @property
+    def address(self) -> int:
+        return self._address
+
+    def attach(self, channel: int, device: SimI2CDevice) -> None:
+        """A chip on a downstream channel; it answers at whatever address it has now."""
+        self.channels[channel].append(device)
 
     def write(self, data: bytes) -> None:
         self._check()
@@ -136,9 +171,11 @@ class SimTCA9548A:
 
     def downstream(self, address: int) -> list[SimI2CDevice]:
         return [
-            devices[address]
+            device
             for channel, devices in enumerate(self.channels)
-            if self.mask & (1 << channel) and address in devices
+            if self.mask & (1 << channel)
+            for device in devices
+            if device.address == address
         ]
 
     def _check(self) -> None:
@@ -146,16 +183,21 @@ class SimTCA9548A:
             raise nack(self.address)
 
 
-# Result register offsets written by the model (hardware.md 1.5).
-_RESULT_DISTANCE = chip.REG_RESULT_RANGE_STATUS + chip.RESULT_DISTANCE_OFFSET
-_RESULT_SIGNAL = chip.REG_RESULT_RANGE_STATUS + chip.RESULT_SIGNAL_OFFSET
-_MIN_RANGE_MM = 40
 _MAX_RANGE_MM = {chip.DistanceMode.SHORT: 1300, chip.DistanceMode.LONG: 4000}
 _PHASECAL_TO_MODE = {0x14: chip.DistanceMode.SHORT, 0x0A: chip.DistanceMode.LONG}
-_RAW_VALID, _RAW_OUT_OF_BOUNDS, _RAW_BELOW_MIN, _RAW_NO_WRAP_CHECK = 9, 5, 8, 19
+_RAW_VALID, _RAW_NO_WRAP_CHECK = 9, 19
 _OSC_CALIBRATE = 0x012C
-# A failed reading from the world's model as the raw status the chip would latch.
-_RAW_FOR_STATUS = {status: raw for raw, status in sorted(RANGE_STATUS.items(), reverse=True)}
+_RAW_STATUS = {
+    ReadingStatus.SIGMA_FAIL: 6,
+    ReadingStatus.SIGNAL_FAIL: 4,
+    ReadingStatus.OUT_OF_BOUNDS: 5,
+    ReadingStatus.TOO_CLOSE: 8,
+}
+"""The raw RESULT__RANGE_STATUS the chip latches for each way a ranging can fail."""
+
+
+def _fixed(value: float, fraction_bits: int, limit: int = 0xFFFF) -> int:
+    return max(0, min(limit, round(value * (1 << fraction_bits))))
 
 
 class SimVL53L1X:
@@ -163,42 +205,51 @@ class SimVL53L1X:
 
     Samples happen every ``max(timing budget, inter-measurement period)`` after a start, on
     ``clock``. A sample is latched into the result registers only when the previous one's
-    interrupt was cleared; otherwise it is lost, as on the chip.
+    interrupt was cleared; otherwise it is lost, as on the chip. ``noise`` None ranges
+    exactly (hand-made tests); the world's noise model otherwise.
     """
 
     def __init__(
         self,
         channel: int,
-        distance_fn: DistanceFn,
+        scene: Scene,
         *,
         clock: Callable[[], float] = time.monotonic,
-        noise_mm: float = 0.0,
+        noise: RangingNoise | None = None,
         boot_polls: int = 2,
         seed: int = 0,
     ) -> None:
         self.channel = channel
-        self.distance_fn = distance_fn
+        self.scene = scene
         self.clock = clock
-        self.noise_mm = noise_mm
+        self.noise = noise
         self.boot_polls = boot_polls
         self.nack = False
         self.forced_status: int | None = None  # fault: raw range status for every sample
         self.model_id = chip.MODEL_ID
         self.samples = 0  # samples latched since power-on, for tests
-        self._rng = random.Random(seed)
+        self._rng = np.random.default_rng(seed)
         self.power_cycle()
 
     def power_cycle(self) -> None:
+        """Power on (or XSHUT): registers cleared, the address back to 0x29."""
         self.regs = bytearray(0x200)
+        self.regs[chip.REG_I2C_ADDRESS] = chip.DEFAULT_ADDRESS
         self.regs[chip.REG_RESULT_OSC_CALIBRATE_VAL : chip.REG_RESULT_OSC_CALIBRATE_VAL + 2] = (
             _OSC_CALIBRATE.to_bytes(2, "big")
         )
+        self.regs[chip.REG_OPTICAL_CENTRE] = chip.OPTICAL_CENTRE_SPAD
         self.index = 0
         self._boot_reads = 0
         self._ranging_since: float | None = None
         self._period_s = 0.1
         self._latched = 0
         self._int_pending = False
+
+    @property
+    def address(self) -> int:
+        """The 7-bit address it answers at (I2C_SLAVE__DEVICE_ADDRESS, volatile)."""
+        return self.regs[chip.REG_I2C_ADDRESS] & 0x7F
 
     # --- I2C messages -------------------------------------------------------------------
 
@@ -225,8 +276,9 @@ class SimVL53L1X:
         if reg == chip.REG_FIRMWARE_SYSTEM_STATUS:
             self._boot_reads += 1
             return 0x03 if self._boot_reads > self.boot_polls else 0x00
-        if reg in (chip.REG_MODEL_ID, chip.REG_MODEL_ID + 1):
-            return self.model_id.to_bytes(2, "big")[reg - chip.REG_MODEL_ID]
+        ident = reg - chip.REG_MODEL_ID
+        if 0 <= ident < len(chip.IDENTIFICATION):
+            return (self.model_id.to_bytes(2, "big") + chip.IDENTIFICATION[2:])[ident]
         if reg == chip.REG_GPIO_TIO_HV_STATUS:
             active_low = bool(self.regs[chip.REG_GPIO_HV_MUX_CTRL] & chip.GPIO_ACTIVE_LOW_BIT)
             return int(self._int_pending != active_low)
@@ -260,6 +312,23 @@ class SimVL53L1X:
     def inter_measurement_ms(self) -> float:
         return self._int(chip.REG_INTERMEASUREMENT_MS, 4) / (_OSC_CALIBRATE * chip.IMP_CLOCK_FACTOR)
 
+    def roi(self) -> SpadRoi:
+        """The region of interest the registers hold (sizes below 4 SPADs act as 4)."""
+        size = self.regs[chip.REG_ROI_SIZE]
+        width, height = (size & 0x0F) + 1, (size >> 4) + 1
+        return SpadRoi(max(4, width), max(4, height), self.regs[chip.REG_ROI_CENTRE])
+
+    def setup(self) -> RangingSetup:
+        """How the next sample is ranged: mode, budget and thresholds from the registers."""
+        mode = self.mode()
+        return RangingSetup(
+            max_range_mm=_MAX_RANGE_MM[mode],
+            timing_budget_ms=self.timing_budget_ms(),
+            sigma_limit_mm=self._int(chip.REG_SIGMA_THRESHOLD, 2) / 4.0,
+            min_signal_mcps=self._int(chip.REG_MIN_SIGNAL_RATE, 2) / 128.0,
+            short_mode=mode is chip.DistanceMode.SHORT,
+        )
+
     # --- ranging ------------------------------------------------------------------------
 
     def _start(self) -> None:
@@ -285,39 +354,31 @@ class SimVL53L1X:
             self._int_pending = True
 
     def _latch(self, first: bool) -> None:
-        seen = self.distance_fn(self.channel)
-        model_raw: int | None = None
-        if isinstance(seen, ToFReading):
-            distance: float | None = None
-            if seen.status is not ReadingStatus.NO_TARGET:
-                distance = float(seen.distance_mm)
-            if seen.status not in (ReadingStatus.VALID, ReadingStatus.NO_TARGET):
-                model_raw = _RAW_FOR_STATUS[seen.status]
-        else:
-            distance = seen
-            if distance is not None and self.noise_mm:
-                distance += self._rng.gauss(0.0, self.noise_mm)
+        roi = self.roi()
+        reading = range_once(self.scene(self.channel, roi), self.setup(), self.noise, self._rng)
         if self.forced_status is not None:
             raw = self.forced_status
-        elif model_raw is not None:
-            raw = model_raw
-        elif distance is None or distance > _MAX_RANGE_MM[self.mode()]:
-            raw, distance = _RAW_OUT_OF_BOUNDS, 0.0
-        elif distance < _MIN_RANGE_MM:
-            raw = _RAW_BELOW_MIN
-        else:
+        elif reading.status is ReadingStatus.VALID:
             raw = _RAW_NO_WRAP_CHECK if first else _RAW_VALID
-        mm = max(0, min(0xFFFF, round(distance or 0.0)))
-        # Peak signal rate falls with the square of distance; 9.7 fixed-point MCPS.
-        signal = min(0xFFFF, round(128 * 2.0e5 / max(mm, _MIN_RANGE_MM) ** 2))
-        self.regs[chip.REG_RESULT_RANGE_STATUS] = raw
-        self.regs[_RESULT_DISTANCE : _RESULT_DISTANCE + 2] = mm.to_bytes(2, "big")
-        self.regs[_RESULT_SIGNAL : _RESULT_SIGNAL + 2] = signal.to_bytes(2, "big")
+        else:
+            raw = _RAW_STATUS[reading.status]
+        signal = _fixed(reading.signal_mcps, 7)
+        results = {
+            chip.REG_RESULT_RANGE_STATUS: (raw, 1),
+            chip.REG_RESULT_SPADS: (_fixed(reading.spads, 8), 2),
+            chip.REG_RESULT_PEAK_SIGNAL: (signal, 2),
+            chip.REG_RESULT_AMBIENT: (_fixed(reading.ambient_mcps, 7), 2),
+            chip.REG_RESULT_SIGMA: (_fixed(reading.sigma_mm, 2), 2),
+            chip.REG_RESULT_DISTANCE: (reading.distance_mm, 2),
+            chip.REG_RESULT_SIGNAL: (signal, 2),
+        }
+        for reg, (value, size) in results.items():
+            self.regs[reg : reg + size] = value.to_bytes(size, "big")
         self.samples += 1
 
     def _check(self) -> None:
         if self.nack:
-            raise nack(chip.DEFAULT_ADDRESS)
+            raise nack(self.address)
 
 
 @dataclass
@@ -330,18 +391,20 @@ class SimTofHardware:
 
 
 def make_tof_hardware(
-    distance_fn: DistanceFn,
+    scene: Scene,
     channels: Iterable[int] = range(CHANNELS),
     *,
     mux_address: int = MUX_ADDRESS,
     clock: Callable[[], float] = time.monotonic,
-    noise_mm: float = 0.0,
+    noise: RangingNoise | None = None,
+    seed: int = 0,
+    hold: Callable[[], contextlib.AbstractContextManager[None]] | None = None,
 ) -> SimTofHardware:
-    bus = SimI2CBus()
+    bus = SimI2CBus(hold)
     mux = SimTCA9548A(mux_address)
-    bus.attach(mux_address, mux)
+    bus.attach(mux)
     sensors = {}
     for ch in channels:
-        sensors[ch] = SimVL53L1X(ch, distance_fn, clock=clock, noise_mm=noise_mm, seed=ch)
-        mux.attach(ch, chip.DEFAULT_ADDRESS, sensors[ch])
+        sensors[ch] = SimVL53L1X(ch, scene, clock=clock, noise=noise, seed=seed * 8 + ch)
+        mux.attach(ch, sensors[ch])
     return SimTofHardware(bus, mux, sensors)

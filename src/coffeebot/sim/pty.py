@@ -21,7 +21,8 @@ from pathlib import Path
 
 class PtyDevice(ABC):
     """Base class: a thread that feeds received bytes to :meth:`on_data` and calls
-    :meth:`on_tick` every ``tick_s``. Subclasses speak the protocol."""
+    :meth:`on_tick` every ``tick_s`` (or, once :meth:`stop_serving` has been called, the same
+    from :meth:`poll`, called by whoever owns time). Subclasses speak the protocol."""
 
     def __init__(
         self,
@@ -46,10 +47,16 @@ class PtyDevice(ABC):
     def start(self) -> None:
         self._thread.start()
 
-    def close(self) -> None:
+    def stop_serving(self) -> None:
+        """Stop the device's own thread and leave the line open: whoever owns time calls
+        :meth:`poll` from now on (the simulator does, once per world step, so the device
+        answers in simulated time however busy the machine is)."""
         self._stop.set()
         if self._thread.is_alive():
             self._thread.join()
+
+    def close(self) -> None:
+        self.stop_serving()
         self.unplug()
         self._dir.cleanup()
 
@@ -107,17 +114,27 @@ class PtyDevice(ABC):
     @abstractmethod
     def on_tick(self, now: float) -> None: ...
 
+    def poll(self, now: float) -> None:
+        """One turn without waiting: take what the driver wrote, then tick at ``now``."""
+        self._receive(0.0)
+        self.on_tick(now)
+
+    def _receive(self, wait_s: float) -> None:
+        master = self._master
+        if master is None:
+            return
+        try:
+            readable, _, _ = select.select([master], [], [], wait_s)
+            data = os.read(master, 4096) if readable else b""
+        except OSError:
+            data = b""  # unplugged under our feet, or nobody has the slave open
+        if data:
+            self.on_data(data)
+
     def _serve(self) -> None:
         while not self._stop.is_set():
-            master = self._master
-            if master is None:
+            if self._master is None:
                 self._stop.wait(self.tick_s)
             else:
-                try:
-                    readable, _, _ = select.select([master], [], [], self.tick_s)
-                    data = os.read(master, 4096) if readable else b""
-                except OSError:
-                    data = b""  # unplugged under our feet, or nobody has the slave open
-                if data:
-                    self.on_data(data)
+                self._receive(self.tick_s)
             self.on_tick(self.clock())

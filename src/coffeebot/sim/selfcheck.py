@@ -10,7 +10,7 @@ from collections.abc import Iterator
 from coffeebot.config import RobotConfig
 from coffeebot.hardware.i2c import I2CBus
 from coffeebot.sim.dwm1001 import SimDwm1001
-from coffeebot.sim.i2c import make_tof_hardware
+from coffeebot.sim.i2c import make_tof_hardware, targets_at
 from coffeebot.sim.motor_controller import SimMotorController
 
 FAULT_ENV = "COFFEEBOT_SIM_FAULT"
@@ -22,7 +22,7 @@ def simulated_robot(config: RobotConfig, fault: str | None) -> Iterator[tuple[Ro
     """The simulated buses wired as ``config`` says, with one named fault injected; yields
     ``config`` with the serial ports pointing at the simulated devices, and the I2C bus."""
     hw = make_tof_hardware(
-        lambda ch: 800.0 + 10 * ch,
+        targets_at(lambda ch: 800.0 + 10 * ch),
         [s.channel for s in config.tof.sensors],
         mux_address=config.i2c.mux_address,
     )
@@ -42,7 +42,7 @@ def simulated_robot(config: RobotConfig, fault: str | None) -> Iterator[tuple[Ro
                 if kind == "nack":
                     sim.nack = True
                 else:
-                    sim.forced_status = 4
+                    sim.forced_status = 3  # a hardware (VCSEL) failure on every ranging
             case ["uwb", "unplug"]:
                 dwm.unplug()
             case ["motor", "unplug"]:

@@ -15,6 +15,7 @@ share of a simulated run from the simulator's.
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import math
 import threading
@@ -22,16 +23,18 @@ import time
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 
-from coffeebot.clock import Clock, ScaledClock
+from coffeebot.clock import Clock, SteppedClock
 from coffeebot.config import RobotConfig
 from coffeebot.floorplan import FloorPlan
+from coffeebot.hardware.vl53l1x import SpadRoi
 from coffeebot.messages import ElevatorRequest, ElevatorState, UwbFix
 from coffeebot.modules.base import Module, ModuleContext
 from coffeebot.sim.dwm1001 import SimDwm1001
 from coffeebot.sim.faults import Fault, FaultRecord
 from coffeebot.sim.i2c import make_tof_hardware
 from coffeebot.sim.motor_controller import DriveSample, SimMotorController
-from coffeebot.sim.world import ObstacleSpec, Pose, ToFReading, World
+from coffeebot.sim.world import ObstacleSpec, Pose, World
+from coffeebot.sim.world.tof import Returns
 
 DEVICE_TICK_S = 0.005
 """Simulated seconds between two device thread ticks (motor telemetry is every 20 ms)."""
@@ -74,6 +77,9 @@ class SimSetup:
     faults: Sequence[Fault] = ()
     seed: int = 0
     speed: float = 1.0
+    wall_clock: bool = False
+    """Run the daemon on the machine's clock, as on the robot, instead of the simulated
+    world's: for benchmarks of the daemon's own timing under load (``speed`` is then 1)."""
 
 
 def demo_setup(plan: FloorPlan, speed: float = 1.0) -> SimSetup:
@@ -106,10 +112,13 @@ class Simulation:
         self._index = {s.channel: i for i, s in enumerate(by_id)}
         self.sensor_channel = {s.id: s.channel for s in by_id}
         self.tof = make_tof_hardware(
-            self._tof_reading,
+            self._tof_returns,
             self._index,
             mux_address=config.i2c.mux_address,
             clock=clock.now,
+            noise=world.noise,
+            seed=world.seed,
+            hold=clock.hold if isinstance(clock, SteppedClock) else None,
         )
         tick_s = DEVICE_TICK_S / speed
         self.uwb = SimDwm1001(fix_fn=self._uwb_fix, clock=clock.now, tick_s=tick_s)
@@ -136,14 +145,24 @@ class Simulation:
         self.motor.close()
 
     def advance(self) -> None:
-        """Step the world to the clock's present, then apply the faults that are due."""
+        """Step the world to the clock's present, then apply the faults that are due. On a
+        :class:`SteppedClock` the UART devices then take their turn too (after the first
+        step their own threads stop), so they answer in the same simulated time as the
+        world moves."""
         now = self.clock.now()
+        stepped = isinstance(self.clock, SteppedClock)
         if self._origin is None:
             self._origin = now  # time spent in the self-check is not part of the run
+            if stepped:
+                self.uwb.stop_serving()
+                self.motor.stop_serving()
         with self.world_time() as world:
             world.step(now - self._origin - world.t_s)
             gap = world.clearance_mm()
             self.truth.min_clearance_mm = min(self.truth.min_clearance_mm, gap)
+        if stepped:
+            self.uwb.poll(now)
+            self.motor.poll(now)
         for fault in self.faults:
             record = fault.update(self)
             if record is not None:
@@ -163,17 +182,22 @@ class Simulation:
     @contextlib.contextmanager
     def world_time(self) -> Iterator[World]:
         """The world under the lock, the calling thread's CPU time in it added to ``cpu_s``
-        (``thread_time`` counts no time spent waiting for the lock)."""
+        (``thread_time`` counts no time spent waiting for the lock). Simulated time stands
+        still meanwhile: what the world costs to compute is not time the robot has
+        (``SteppedClock.hold``)."""
+        hold: contextlib.AbstractContextManager[None] = (
+            self.clock.hold() if isinstance(self.clock, SteppedClock) else contextlib.nullcontext()
+        )
         start = time.thread_time()
-        with self.lock:
+        with self.lock, hold:
             try:
                 yield self.world
             finally:
                 self.cpu_s += time.thread_time() - start
 
-    def _tof_reading(self, channel: int) -> ToFReading:
+    def _tof_returns(self, channel: int, roi: SpadRoi) -> Returns:
         with self.world_time() as world:
-            return world.tof_reading(self._index[channel])
+            return world.tof_returns(self._index[channel], roi)
 
     def _uwb_fix(self) -> UwbFix | None:
         with self.world_time() as world:
@@ -198,44 +222,13 @@ class SimElevatorLink:
             return self.sim.world.elevator.state()
 
 
-class Pacer:
-    """Slows a :class:`ScaledClock` down when the event loop cannot keep up, and back up.
-
-    How late the world's own step wakes, in simulated time, measures the whole process: a
-    loop that is late by half a scan period is one whose sensors and modules no longer run at
-    their rates in simulated time. Lateness is smoothed over about ``1 / smoothing`` steps;
-    above ``max_lag_s`` the rate drops by ``step_down``, below a quarter of it the rate climbs
-    back towards the requested speed.
-    """
-
-    def __init__(
-        self,
-        clock: ScaledClock,
-        max_lag_s: float = 0.01,
-        smoothing: float = 0.05,
-        step_down: float = 0.85,
-        step_up: float = 1.02,
-    ) -> None:
-        self.clock = clock
-        self.max_lag_s = max_lag_s
-        self.smoothing = smoothing
-        self.step_down = step_down
-        self.step_up = step_up
-        self.lag_s = 0.0
-
-    def observe(self, lag_s: float) -> None:
-        self.lag_s += self.smoothing * (max(0.0, lag_s) - self.lag_s)
-        if self.lag_s > self.max_lag_s:
-            self.clock.set_rate(self.clock.rate * self.step_down)
-            self.lag_s = 0.0  # judge the new rate on its own lateness
-        elif self.lag_s < self.max_lag_s / 4 and self.clock.rate < self.clock.speed:
-            self.clock.set_rate(self.clock.rate * self.step_up)
-
-
 class WorldModule(Module):
-    """Steps the simulated world every ``step_s`` of the daemon's clock.
+    """Moves simulated time on and steps the world, every ``step_s`` of simulated time.
 
-    On a sped-up clock it also paces simulated time to what the machine keeps up with.
+    On a :class:`SteppedClock` (the simulator's) it is the clock's only advancer, pacing the
+    steps to the clock's speed in the machine's time as long as the machine keeps up; when
+    it does not, the run goes slower, not differently (a late step is not made up for by a
+    burst). On any other clock (a test's manual clock) it just steps the world as time goes.
     """
 
     name = "world"
@@ -246,10 +239,14 @@ class WorldModule(Module):
 
     async def run(self, ctx: ModuleContext) -> None:
         clock = ctx.clock
-        pacer = Pacer(clock) if isinstance(clock, ScaledClock) else None
+        if not isinstance(clock, SteppedClock):
+            while True:
+                self.sim.advance()
+                await clock.sleep(self.step_s)
+        wall_step = self.step_s / clock.speed
+        due = time.monotonic()
         while True:
-            self.sim.advance()
-            before = clock.now()
-            await clock.sleep(self.step_s)
-            if pacer is not None:
-                pacer.observe(clock.now() - before - self.step_s)
+            if clock.advance(self.step_s):
+                self.sim.advance()
+            due = max(due + wall_step, time.monotonic() - wall_step)
+            await asyncio.sleep(max(0.0, due - time.monotonic()))

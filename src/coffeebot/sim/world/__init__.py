@@ -3,17 +3,19 @@
 from coffeebot.sim.world.geometry import Surfaces
 from coffeebot.sim.world.obstacles import ObstacleSpec
 from coffeebot.sim.world.robot import Pose, RobotSpec
-from coffeebot.sim.world.tof import SensorMount, ToFModel, ToFReading
+from coffeebot.sim.world.tof import ConeOptics, RangingNoise, RangingSetup, SensorMount, ToFReading
 from coffeebot.sim.world.world import Collision, UwbModel, World
 
 __all__ = [
     "Collision",
+    "ConeOptics",
     "ObstacleSpec",
     "Pose",
+    "RangingNoise",
+    "RangingSetup",
     "RobotSpec",
     "SensorMount",
     "Surfaces",
-    "ToFModel",
     "ToFReading",
     "UwbModel",
     "World",

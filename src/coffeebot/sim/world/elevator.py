@@ -15,6 +15,7 @@ import numpy as np
 
 from coffeebot.floorplan import Door, Floor, FloorPlan
 from coffeebot.messages import ElevatorRequest, ElevatorState
+from coffeebot.sim.world import materials
 from coffeebot.sim.world.geometry import Surfaces
 
 Phase = Literal["idle", "opening", "open", "closing", "travelling"]
@@ -153,5 +154,6 @@ class SimElevator:
                 tuple(f"elevator car {level}" for _ in rows),
                 np.zeros((0, 5)),
                 (),
+                np.full(len(rows), materials.STEEL),
             )
         return self._cache[key]

@@ -1,4 +1,5 @@
-"""Surfaces as flat numpy arrays, and the two vectorised queries on them: rays and footprints.
+"""Surfaces as flat numpy arrays, and the two vectorised queries on them: lines of sight and
+footprints (how the sensors range is ``tof.py``).
 
 Everything a sensor can see or the robot can hit is a vertical surface with a height range:
 a straight segment (walls, door leaves, box sides) or a vertical cylinder (poles, legs, bars).
@@ -10,11 +11,12 @@ below sensor height vanish from the cone at close range, as it did in the seed's
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from coffeebot.floorplan import segment_distances
+from coffeebot.sim.world.materials import DEFAULT
 
 _EPS = 1e-6
 
@@ -22,12 +24,25 @@ _EPS = 1e-6
 @dataclass(frozen=True)
 class Surfaces:
     """Segments (N, 6: x0 y0 x1 y1 z_bottom z_top) and cylinders (M, 5: cx cy r z_bottom
-    z_top), each row named by the element it belongs to (for collision reports)."""
+    z_top), each row named by the element it belongs to (for collision reports) and with the
+    diffuse reflectance at 940 nm the ToF sensors see (``materials.py``; default when left
+    out)."""
 
     segments: np.ndarray
     segment_ids: tuple[str, ...]
     cylinders: np.ndarray
     cylinder_ids: tuple[str, ...]
+    segment_reflectance: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    cylinder_reflectance: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    def __post_init__(self) -> None:
+        # Surfaces built without optics (tests, the robot's footprint) get the default.
+        if len(self.segment_reflectance) != len(self.segments):
+            object.__setattr__(self, "segment_reflectance", np.full(len(self.segments), DEFAULT))
+        if len(self.cylinder_reflectance) != len(self.cylinders):
+            object.__setattr__(
+                self, "cylinder_reflectance", np.full(len(self.cylinders), DEFAULT)
+            )
 
     @classmethod
     def empty(cls) -> Surfaces:
@@ -39,15 +54,19 @@ class Surfaces:
             self.segment_ids + other.segment_ids,
             np.concatenate([self.cylinders, other.cylinders]),
             self.cylinder_ids + other.cylinder_ids,
+            np.concatenate([self.segment_reflectance, other.segment_reflectance]),
+            np.concatenate([self.cylinder_reflectance, other.cylinder_reflectance]),
         )
 
     def take(self, segment_index: np.ndarray, cylinder_index: np.ndarray) -> Surfaces:
-        """A subset, keeping the names."""
+        """A subset, keeping the names and reflectances."""
         return Surfaces(
             self.segments[segment_index],
             tuple(self.segment_ids[i] for i in segment_index),
             self.cylinders[cylinder_index],
             tuple(self.cylinder_ids[i] for i in cylinder_index),
+            self.segment_reflectance[segment_index],
+            self.cylinder_reflectance[cylinder_index],
         )
 
     def near(self, x: float, y: float, radius: float) -> tuple[np.ndarray, np.ndarray]:
@@ -67,7 +86,8 @@ def cast_rays(
     tan_el: np.ndarray,
     cos_el: np.ndarray,
 ) -> np.ndarray:
-    """Range to the nearest surface along every ray, ``inf`` where nothing is hit.
+    """Range to the nearest surface along every ray, ``inf`` where nothing is hit: the lines of
+    sight ground truth asks about (what a sensor could see), not how a sensor ranges.
 
     ``origins`` (S, 2) and ``heights`` (S,) place S sensors; ray (s, a, e) leaves sensor s at
     floor-frame azimuth ``azimuths[s, a]`` (rad) and elevation with tangent ``tan_el[s, e]``.

@@ -1,27 +1,192 @@
-"""The VL53L1X as the world sees it: a cone of rays from a mounting pose, and its noise.
+"""The VL53L1X as the world sees it: what one ranging's photons say, and what the chip makes
+of them.
 
-Each sensor casts a circular cone sampled as a small grid of rays (``rays_per_axis`` across
-the field of view, corners outside the circle dropped). The reading is the nearest hit with
-the seed's error model: +/-5 mm up close, growing noise and more invalid readings beyond
-~1000 mm (mid-range mode), nothing beyond the range limit. A target that fills only a sliver
-of the cone (a pole at its edge, a thin chair leg) returns a weak signal, so it is reported
-only part of the time, as the seed saw with the swivel chair's pole.
+The real chip does not report the nearest thing in its cone. Its single-photon detectors
+integrate every photon that comes back through the lens during the timing budget, and the
+firmware reports one distance: the signal-weighted mean of the paths those photons took (ST:
+it "averages all the photon times it gets back"; there is no multi-target histogram on this
+part). Near and bright surfaces weigh more, since the return of a surface falls with the
+square of its distance, rises with its reflectance and falls with the incidence angle. So a
+chair leg in front of a wall reads somewhere between the two, pulled towards the wall, and a
+thin dark thing far away is not seen at all. This module models that (``docs/sensor-model.md``
+gives each fact and its source):
+
+* **The cone** is the lens imaging the 16 x 16 SPAD array: a region of interest (ROI) of
+  ``width x height`` SPADs around a centre SPAD (ST's numbering) looks at a box of directions
+  ``spad_pitch_deg`` per SPAD, blurred by the optics (``blur_deg``) and weighted by the
+  emitter's beam (``emitter_sigma_deg``), so the response is strongest in the middle. The
+  three numbers are fitted so that the full array gives the datasheet's 27 degree field of
+  view and the smallest 4 x 4 ROI 15 degrees, a field of view being the full angle within
+  which a target returns at least a tenth of the signal it returns on the axis.
+* **The returns** are sampled on a dense grid of directions (``azimuth_step_deg`` x
+  ``elevation_step_deg``) out to ``reach_deg``. Walls and box faces are hit by each direction;
+  poles and legs, which can be thinner than a grid step, cover a computed fraction of each
+  azimuth column, so a chair leg's share of the signal grows smoothly as it comes closer
+  instead of jumping between grid lines. Each sample's signal is
+  ``response x reflectance x cos(incidence) / distance^2``.
+* **The chip's answer** (:func:`range_once`) comes from the summed signal, the ambient light
+  and the spread of the returns: a shot-noise sigma that grows with ambient light and falls
+  with signal and timing budget, widened when the returns spread over a depth comparable to
+  the pulse (a blend of a near and a far surface reports a larger sigma), a short bias up
+  close, and the status from the chip's own thresholds (minimum signal rate, sigma limit) and
+  the distance mode's range. Under a bad status the distance register still holds a number,
+  often garbage.
+
+The chip model (``sim/i2c.py``) reads its ROI, thresholds, mode and budget from its registers
+and asks the world for the returns of that ROI; benchmarks and tests call :meth:`World.scan`
+with a :class:`RangingSetup`, which goes through the same :func:`range_once`.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field
+from scipy.special import ndtr
 
-from coffeebot.messages import ReadingStatus
-from coffeebot.sim.world.geometry import cast_rays
+from coffeebot.config import TofConfig
+from coffeebot.hardware.vl53l1x import FULL_ROI, MIN_RANGE_MM, SPADS, SpadRoi
+from coffeebot.messages import RangeReading, ReadingStatus
+from coffeebot.sim.world.geometry import Surfaces
 
-# Rays within this depth of the nearest hit count as the same target when judging coverage.
-_TARGET_DEPTH_MM = 50.0
+_EPS = 1e-6
+
+
+class ConeOptics(BaseModel):
+    """The lens, the emitter and the light: what decides which returns a ranging collects."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    spad_pitch_deg: float = Field(1.25, gt=0, description="field of view per SPAD column")
+    blur_deg: float = Field(3.3, gt=0, description="optical blur of a SPAD's view (sigma)")
+    emitter_sigma_deg: float = Field(15.0, gt=0, description="the emitter's beam (sigma)")
+    azimuth_step_deg: float = Field(1.25, gt=0)
+    elevation_step_deg: float = Field(2.5, gt=0)
+    reach_deg: float = Field(
+        18.0, gt=0, description="directions cast from the axis; the response is < 1 % beyond"
+    )
+    signal_mcps: float = Field(
+        15.4,
+        gt=0,
+        description="signal rate of a perfect white (R = 1) wall square-on at 1 m filling the "
+        "full ROI: with the 1 Mcps minimum, an 88 % target is seen to 3.6 m in the dark and a "
+        "17 % one to ~1.6 m (the datasheet's long-mode figures)",
+    )
+    ambient_mcps: float = Field(
+        0.001,
+        ge=0,
+        description="ambient count rate on the full ROI: office lighting (LEDs and "
+        "fluorescent tubes emit almost nothing at 940 nm, the register reads 0); strong "
+        "sunlight is ~40",
+    )
+    floor_reflectance: float = Field(
+        0.3, ge=0, le=1, description="linoleum or carpet; met at grazing angles, so weak"
+    )
+    max_path_mm: float = Field(
+        7000.0, gt=0, description="surfaces further away return too little to matter"
+    )
+
+
+class RangingNoise(BaseModel):
+    """The chip's noise and sigma estimate, fitted to the published figures."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    shot_mm: float = Field(
+        6.7,
+        ge=0,
+        description="sigma = shot_mm * sqrt(S + k A) / S / sqrt(budget / 100 ms), S and A in "
+        "Mcps: a table at 415 mm reads +/-1.3 mm",
+    )
+    ambient_weight_long: float = Field(
+        3365.0,
+        ge=0,
+        description="k in long mode: ambient photons arrive over the whole window, signal "
+        "ones within a pulse; with 40 Mcps of sunlight a white target is lost at ~0.7 m",
+    )
+    ambient_weight_short: float = Field(
+        840.0, ge=0, description="k in short mode, which ST gives better ambient immunity"
+    )
+    pulse_mm: float = Field(
+        300.0,
+        gt=0,
+        description="effective pulse width as range (~2 ns): returns spread over a depth like "
+        "this widen the pulse the chip times, so its sigma estimate grows",
+    )
+    near_bias_mm: float = Field(
+        -15.0, description="reads short up close (a hand at 100-200 mm: -8 to -20 mm)"
+    )
+    near_bias_until_mm: float = Field(450.0, gt=0)
+    near_bias_fade_mm: float = Field(550.0, gt=0, description="gone this much further out")
+
+
+class RangingSetup(NamedTuple):
+    """What the chip's registers say about one ranging."""
+
+    max_range_mm: float = 4000.0
+    """The distance mode's valid phase range: long 4 m, short 1.3 m."""
+    timing_budget_ms: float = 20.0
+    sigma_limit_mm: float = 90.0
+    """RANGE_CONFIG__SIGMA_THRESH (ULD default 90 mm)."""
+    min_signal_mcps: float = 1.0
+    """RANGE_CONFIG__MIN_COUNT_RATE_RTN_LIMIT_MCPS (ULD default ~1 Mcps)."""
+    short_mode: bool = False
+
+
+DEFAULT_SETUP = RangingSetup()
+"""Long mode, a 20 ms budget and the ULD's default thresholds (what ST's figures use)."""
+
+
+def robot_setup(tof: TofConfig) -> RangingSetup:
+    """How the ToF poller sets the chips up from the robot description."""
+    short = tof.distance_mode == "short"
+    return RangingSetup(
+        max_range_mm=1300.0 if short else 4000.0,
+        timing_budget_ms=tof.timing_budget_ms,
+        sigma_limit_mm=tof.sigma_limit_mm,
+        min_signal_mcps=tof.min_signal_mcps,
+        short_mode=short,
+    )
+
+
+class Returns(NamedTuple):
+    """What came back during one ranging, before the chip judges it."""
+
+    signal_mcps: float
+    ambient_mcps: float
+    mean_mm: float
+    """Signal-weighted mean path length; nan when nothing returned."""
+    spread_mm: float
+    """Signal-weighted standard deviation of the path lengths (a blend's depth)."""
+    spads: int
+
+
+class ToFReading(NamedTuple):
+    """One ranging as the result registers hold it."""
+
+    status: ReadingStatus
+    distance_mm: int
+    signal_mcps: float = 0.0
+    ambient_mcps: float = 0.0
+    sigma_mm: float = 0.0
+    spads: int = SPADS * SPADS
+
+
+def as_range_reading(sensor: int, reading: ToFReading) -> RangeReading:
+    """A world ranging as the ToF poller publishes it: a distance only when valid."""
+    valid = reading.status is ReadingStatus.VALID
+    return RangeReading(
+        sensor=sensor,
+        status=reading.status,
+        distance_mm=reading.distance_mm if valid else None,
+        signal_rate_mcps=reading.signal_mcps,
+        ambient_rate_mcps=reading.ambient_mcps,
+        sigma_mm=reading.sigma_mm,
+    )
 
 
 class SensorMount(BaseModel):
@@ -33,101 +198,300 @@ class SensorMount(BaseModel):
     y_mm: float
     yaw_deg: float
     height_mm: float = Field(250.0, gt=0)
-    fov_deg: float = Field(27.0, ge=15, le=27)
+    fov_deg: float = Field(
+        27.0, ge=15, le=27, description="nominal cone of the configured ROI (ground truth)"
+    )
 
 
-class ToFModel(BaseModel):
-    """Error model of one ranging; defaults follow seed 000 (mid-range mode)."""
-
-    model_config = ConfigDict(frozen=True, extra="forbid")
-
-    rays_per_axis: int = Field(5, ge=1, description="odd, so the centre ray exists")
-    sigma_mm: float = Field(2.5, ge=0, description="+/-5 mm as two standard deviations")
-    noisy_beyond_mm: float = Field(1000.0, gt=0)
-    far_sigma_per_mm: float = Field(0.03, ge=0, description="extra sigma per mm beyond that")
-    max_range_mm: float = Field(4000.0, gt=0)
-    invalid_probability: float = Field(0.002, ge=0, le=1)
-    far_invalid_per_m: float = Field(0.08, ge=0, description="extra invalid rate per metre")
-    weak_target_fraction: float = Field(0.2, ge=0, le=1)
-    weak_target_detect_probability: float = Field(0.5, ge=0, le=1)
-
-    @field_validator("rays_per_axis")
-    @classmethod
-    def _odd(cls, value: int) -> int:
-        if value % 2 == 0:
-            raise ValueError("must be odd so that the cone has a centre ray")
-        return value
-
-    @classmethod
-    def exact(cls, **overrides: float) -> ToFModel:
-        """A noiseless sensor that always reports the nearest hit: for hand-computed tests."""
-        values = {
-            "sigma_mm": 0.0,
-            "far_sigma_per_mm": 0.0,
-            "invalid_probability": 0.0,
-            "far_invalid_per_m": 0.0,
-            "weak_target_detect_probability": 1.0,
-            **overrides,
-        }
-        return cls.model_validate(values)
+def flat_target(
+    distance_mm: float | None,
+    optics: ConeOptics,
+    roi: SpadRoi = FULL_ROI,
+    reflectance: float = 0.88,
+) -> Returns:
+    """The returns of a white card square-on filling the cone (hand-made chip tests); no
+    target at all for ``None``."""
+    share = _response_share(optics, roi)
+    ambient = optics.ambient_mcps * share
+    if distance_mm is None or distance_mm <= 0:
+        return Returns(0.0, ambient, math.nan, 0.0, roi.spad_count)
+    signal = optics.signal_mcps * reflectance * share / (distance_mm / 1000.0) ** 2
+    return Returns(signal, ambient, float(distance_mm), 0.0, roi.spad_count)
 
 
-class ToFReading(NamedTuple):
-    status: ReadingStatus
-    distance_mm: int
+def range_once(
+    returns: Returns,
+    setup: RangingSetup,
+    noise: RangingNoise | None,
+    rng: np.random.Generator,
+) -> ToFReading:
+    """The chip's answer to ``returns``; ``noise`` None: exact (no shot noise, no bias)."""
+    s, a = returns.signal_mcps, returns.ambient_mcps
+    if s <= 0.0:
+        garbage = int(rng.uniform(0, setup.max_range_mm))
+        return ToFReading(ReadingStatus.SIGNAL_FAIL, garbage, 0.0, a, 16383.75, returns.spads)
+    shot = 0.0
+    distance = returns.mean_mm
+    if noise is not None:
+        k = noise.ambient_weight_short if setup.short_mode else noise.ambient_weight_long
+        budget = math.sqrt(setup.timing_budget_ms / 100.0)
+        shot = noise.shot_mm * math.sqrt(s + k * a) / s / budget
+        distance += _near_bias(noise, distance) + shot * rng.standard_normal()
+    spread = returns.spread_mm / noise.pulse_mm if noise is not None else 0.0
+    sigma = min(shot * math.sqrt(1.0 + spread * spread), 16383.75)
+    reported = max(0, min(0xFFFF, round(distance)))
+    if s < setup.min_signal_mcps:
+        status = ReadingStatus.SIGNAL_FAIL
+    elif distance > setup.max_range_mm:
+        status = ReadingStatus.OUT_OF_BOUNDS
+    elif sigma > setup.sigma_limit_mm:
+        status = ReadingStatus.SIGMA_FAIL
+    elif distance < MIN_RANGE_MM:
+        status = ReadingStatus.TOO_CLOSE
+    else:
+        status = ReadingStatus.VALID
+    return ToFReading(status, reported, s, a, sigma, returns.spads)
+
+
+def _near_bias(noise: RangingNoise, distance_mm: float) -> float:
+    fade = (distance_mm - noise.near_bias_until_mm) / noise.near_bias_fade_mm
+    return noise.near_bias_mm * min(1.0, max(0.0, 1.0 - fade))
+
+
+def _wrap(angle: np.ndarray) -> np.ndarray:
+    return (angle + math.pi) % (2 * math.pi) - math.pi
+
+
+def _box_response(u: np.ndarray, lo: float, hi: float, blur: float) -> np.ndarray:
+    """A box of directions [lo, hi] (deg) seen through a Gaussian blur."""
+    return ndtr((u - lo) / blur) - ndtr((u - hi) / blur)
+
+
+def roi_response(
+    optics: ConeOptics, roi: SpadRoi, az_deg: np.ndarray, el_deg: np.ndarray
+) -> np.ndarray:
+    """Response (A, E) of ``roi`` at azimuth/elevation offsets from the optical axis."""
+    (c0, c1), (r0, r1) = roi.spans()
+    p, b = optics.spad_pitch_deg, optics.blur_deg
+    half = SPADS / 2
+    x = _box_response(az_deg, (half - c1) * p, (half - c0) * p, b)
+    y = _box_response(el_deg, (r0 - half) * p, (r1 - half) * p, b)
+    spread = 2 * optics.emitter_sigma_deg**2
+    emitter = np.exp(-(az_deg[:, None] ** 2 + el_deg[None, :] ** 2) / spread)
+    return x[:, None] * y[None, :] * emitter
+
+
+@functools.cache
+def _grid(optics: ConeOptics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Azimuth offsets (A,), elevation offsets (E,) in degrees and the (A, E) mask of the
+    directions within ``reach_deg`` of the axis."""
+    n_az = math.ceil(optics.reach_deg / optics.azimuth_step_deg)
+    n_el = math.ceil(optics.reach_deg / optics.elevation_step_deg)
+    az = np.arange(-n_az, n_az + 1) * optics.azimuth_step_deg
+    el = np.arange(-n_el, n_el + 1) * optics.elevation_step_deg
+    mask = az[:, None] ** 2 + el[None, :] ** 2 <= optics.reach_deg**2 + _EPS
+    return az, el, mask
+
+
+@functools.cache
+def roi_weights(optics: ConeOptics, roi: SpadRoi) -> np.ndarray:
+    """Per-direction weights (A, E) of ``roi``, scaled so the full ROI's sum to 1 (a smaller
+    ROI collects less of the same light)."""
+    az, el, mask = _grid(optics)
+    solid_angle = np.where(mask, np.cos(np.radians(el))[None, :], 0.0)
+    full = (roi_response(optics, FULL_ROI, az, el) * solid_angle).sum()
+    return roi_response(optics, roi, az, el) * solid_angle / full
+
+
+def _response_share(optics: ConeOptics, roi: SpadRoi) -> float:
+    return float(roi_weights(optics, roi).sum())
+
+
+def field_of_view_deg(optics: ConeOptics, roi: SpadRoi = FULL_ROI, level: float = 0.1) -> float:
+    """Full horizontal angle within which ``roi`` responds at least ``level`` of its peak."""
+    u = np.linspace(-40.0, 40.0, 8001)
+    response = roi_response(optics, roi, u, np.zeros(1))[:, 0]
+    inside = u[response >= level * response.max()]
+    return float(inside[-1] - inside[0])
+
+
+class Layers(NamedTuple):
+    """What every direction of every sensor meets, before any ROI weighs it: per sensor,
+    azimuth, elevation and layer (the surface behind, then each pole in front of it)."""
+
+    path_mm: np.ndarray
+    """(S, A, E, L) path length along the ray; 0 where the layer holds nothing."""
+    strength: np.ndarray
+    """(S, A, E, L) visible share x reflectance x cos(incidence) / path^2 (m)."""
 
 
 class SensorArray:
-    """Precomputed cone geometry for a set of mounts, cast from any robot pose at once."""
+    """The robot's sensors as optics: their directions, cast from any robot pose at once."""
 
-    def __init__(self, mounts: Sequence[SensorMount], model: ToFModel) -> None:
+    def __init__(self, mounts: Sequence[SensorMount], optics: ConeOptics) -> None:
         self.mounts = tuple(mounts)
-        self.model = model
-        n = model.rays_per_axis
-        unit = np.linspace(-1.0, 1.0, n) if n > 1 else np.zeros(1)
-        self.cone_mask = unit[:, None] ** 2 + unit[None, :] ** 2 <= 1.0 + 1e-9  # (A, E)
-        half = np.radians([m.fov_deg / 2 for m in self.mounts])[:, None]
-        self._yaw = np.radians([m.yaw_deg for m in self.mounts])[:, None] + unit * half
-        elevation = unit * half
-        self._tan_el, self._cos_el = np.tan(elevation), np.cos(elevation)
+        self.optics = optics
+        az, el, _mask = _grid(optics)
+        self._az = np.radians(az)
+        self._tan_el = np.tan(np.radians(el))
+        self._cos_el = np.cos(np.radians(el))
+        self._sin_dep = np.maximum(-np.sin(np.radians(el)), 0.0)
+        self._half_column = math.radians(optics.azimuth_step_deg) / 2
+        self._tan_reach = math.tan(math.radians(optics.reach_deg))
         self._mx = np.array([m.x_mm for m in self.mounts])
         self._my = np.array([m.y_mm for m in self.mounts])
         self._mz = np.array([m.height_mm for m in self.mounts])
+        self._yaw = np.radians([m.yaw_deg for m in self.mounts])
 
-    @property
-    def rays_per_sensor(self) -> int:
-        return int(self.cone_mask.sum())
+    def returns(self, layers: Layers, sensor: int, roi: SpadRoi = FULL_ROI) -> Returns:
+        """What sensor ``sensor`` (index into the mounts) collects through ``roi``."""
+        weights = roi_weights(self.optics, roi)
+        ambient = self.optics.ambient_mcps * float(weights.sum())
+        signal = weights[..., None] * layers.strength[sensor]
+        total = float(signal.sum())
+        if total <= 0.0:
+            return Returns(0.0, ambient, math.nan, 0.0, roi.spad_count)
+        path = layers.path_mm[sensor]
+        mean = float((signal * path).sum() / total)
+        spread = math.sqrt(max(0.0, float((signal * (path - mean) ** 2).sum() / total)))
+        return Returns(self.optics.signal_mcps * total, ambient, mean, spread, roi.spad_count)
 
-    def ranges(
-        self, x: float, y: float, theta: float, segments: np.ndarray, cylinders: np.ndarray
-    ) -> np.ndarray:
-        """(sensors, rays) ranges in mm from a robot pose (theta in rad); ``inf``: no hit."""
+    def layers(self, x: float, y: float, theta: float, surfaces: Surfaces) -> Layers:
+        """Every sensor's returns from a robot pose (mm, theta in rad) among ``surfaces``."""
         c, s = math.cos(theta), math.sin(theta)
-        origins = np.stack([x + c * self._mx - s * self._my, y + s * self._mx + c * self._my], 1)
-        hits = cast_rays(
-            segments, cylinders, origins, self._mz, theta + self._yaw, self._tan_el, self._cos_el
+        ox = (x + c * self._mx - s * self._my)[:, None]  # (S, 1)
+        oy = (y + s * self._mx + c * self._my)[:, None]
+        oz = self._mz[:, None, None]  # (S, 1, 1)
+        azimuths = theta + self._yaw[:, None] + self._az[None, :]  # (S, A)
+        dx, dy = np.cos(azimuths), np.sin(azimuths)
+        bg_t, bg_gain = self._background(surfaces, ox, oy, oz, dx, dy)
+        paths = [bg_t[..., None]]
+        gains = [bg_gain[..., None]]
+        poles = self._poles(surfaces, ox, oy, oz, azimuths, bg_t)
+        if poles is not None:
+            cyl_t, cyl_gain, through = poles
+            gains[0] = gains[0] * through[..., None]
+            paths.append(cyl_t)
+            gains.append(cyl_gain)
+        horizontal = np.concatenate(
+            [np.broadcast_to(p, g.shape) for p, g in zip(paths, gains, strict=True)], -1
         )
-        return hits[:, self.cone_mask]
+        gain = np.concatenate(gains, -1)
+        tilt = self._cos_el[None, None, :, None]
+        path = np.where(np.isfinite(horizontal), horizontal, 0.0) / tilt
+        seen = np.isfinite(horizontal) & (gain > 0.0) & (path <= self.optics.max_path_mm)
+        path = np.where(seen, path, 0.0)
+        metres = np.where(seen, path, 1000.0) / 1000.0
+        return Layers(path, np.where(seen, gain / metres**2, 0.0))
 
-    def measure(self, ranges: np.ndarray, rng: np.random.Generator) -> list[ToFReading]:
-        """Turn per-ray ranges of some sensors into readings with the error model."""
-        m = self.model
-        nearest = ranges.min(axis=1)
-        target = ranges <= nearest[:, None] + _TARGET_DEPTH_MM
-        background = np.where(target, np.inf, ranges).min(axis=1)
-        weak = target.mean(axis=1) < m.weak_target_fraction
-        missed = weak & (rng.random(len(ranges)) >= m.weak_target_detect_probability)
-        true = np.where(missed, background, nearest)
-        far = np.maximum(np.nan_to_num(true, posinf=0.0) - m.noisy_beyond_mm, 0.0)
-        sigma = m.sigma_mm + m.far_sigma_per_mm * far
-        noisy = np.rint(np.maximum(true + rng.normal(0.0, 1.0, len(true)) * sigma, 0.0))
-        invalid = rng.random(len(true)) < m.invalid_probability + m.far_invalid_per_m * far / 1000
-        readings = []
-        for distance, bad in zip(noisy, invalid, strict=True):
-            if not distance <= m.max_range_mm:
-                readings.append(ToFReading(ReadingStatus.NO_TARGET, 0))
-            elif bad:
-                readings.append(ToFReading(ReadingStatus.SIGMA_FAIL, int(distance)))
-            else:
-                readings.append(ToFReading(ReadingStatus.VALID, int(distance)))
-        return readings
+    def _background(
+        self,
+        surfaces: Surfaces,
+        ox: np.ndarray,
+        oy: np.ndarray,
+        oz: np.ndarray,
+        dx: np.ndarray,
+        dy: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Horizontal distance (S, A, E) to the first wall, face or floor each direction
+        meets, and its reflectance x cos(incidence)."""
+        tan_el = self._tan_el[None, None, :]
+        floor_t = np.where(tan_el < 0, oz / np.maximum(-tan_el, _EPS), np.inf)  # (S, 1, E)
+        floor_gain = self.optics.floor_reflectance * self._sin_dep[None, None, :]
+        shape = (*dx.shape, len(self._tan_el))
+        best_t = np.broadcast_to(floor_t, shape).copy()
+        best_gain = np.broadcast_to(floor_gain, shape).copy()
+        seg = surfaces.segments
+        if not len(seg):
+            return best_t, best_gain
+        ex, ey = seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1]
+        wx, wy = seg[:, 0] - ox[..., None], seg[:, 1] - oy[..., None]  # (S, 1, K)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            denom = dx[..., None] * ey - dy[..., None] * ex  # (S, A, K)
+            t = (wx * ey - wy * ex) / denom
+            u = (wx * dy[..., None] - wy * dx[..., None]) / denom
+        t = np.where((t > _EPS) & (u >= 0.0) & (u <= 1.0), t, np.inf)
+        cos_h = np.abs(denom) / np.maximum(np.hypot(ex, ey), _EPS)  # (S, A, K)
+        gain_h = surfaces.segment_reflectance * cos_h
+        # A wall standing on the floor and reaching above the cone at its distance is met by
+        # every direction that has not met the floor first: one nearest per column.
+        tall = (seg[:, 4] <= 0.0) & (seg[:, 5] >= oz + t * self._tan_reach)
+        t_tall = np.where(tall, t, np.inf)
+        k = t_tall.argmin(-1)[..., None]
+        nearest = np.take_along_axis(t_tall, k, -1)  # (S, A, 1)
+        wall_gain = np.take_along_axis(gain_h, k, -1) * self._cos_el[None, None, :]
+        hit = nearest < best_t
+        best_t = np.where(hit, nearest, best_t)
+        best_gain = np.where(hit, wall_gain, best_gain)
+        # Faces that stop within the cone (boxes, shelves, door leaves far away): per elevation.
+        partial = np.flatnonzero(np.any(~tall & np.isfinite(t), axis=(0, 1)))
+        if len(partial):
+            tp = t[..., partial][:, :, None, :]  # (S, A, 1, P)
+            z = oz[..., None] + np.where(np.isfinite(tp), tp, 0.0) * tan_el[..., None]
+            met = (z >= seg[partial, 4]) & (z <= seg[partial, 5]) & np.isfinite(tp)
+            tp = np.where(met, tp, np.inf)
+            k = tp.argmin(-1)[..., None]
+            near = np.take_along_axis(tp, k, -1)[..., 0]
+            gain = np.take_along_axis(
+                np.broadcast_to(gain_h[..., partial][:, :, None, :], tp.shape), k, -1
+            )[..., 0] * self._cos_el[None, None, :]
+            hit = near < best_t
+            best_t = np.where(hit, near, best_t)
+            best_gain = np.where(hit, gain, best_gain)
+        return best_t, best_gain
+
+    def _poles(
+        self,
+        surfaces: Surfaces,
+        ox: np.ndarray,
+        oy: np.ndarray,
+        oz: np.ndarray,
+        azimuths: np.ndarray,
+        bg_t: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """Poles in front of the background: per (S, A, E, pole) horizontal distance and
+        visible share x reflectance x cos(incidence), nearest pole first, and the share of
+        each direction that gets through all of them (S, A, E); None when no cone sees one."""
+        cyl = surfaces.cylinders
+        if not len(cyl):
+            return None
+        order = np.argsort(np.hypot(cyl[:, 0] - ox.mean(), cyl[:, 1] - oy.mean()))
+        cyl, reflect = cyl[order], surfaces.cylinder_reflectance[order]
+        cx, cy, r = cyl[:, 0] - ox, cyl[:, 1] - oy, cyl[:, 2]  # (S, K)
+        dist = np.maximum(np.hypot(cx, cy), r + _EPS)
+        half = np.arcsin(np.clip(r / dist, 0.0, 1.0))
+        offset = _wrap(np.arctan2(cy, cx)[:, None, :] - azimuths[..., None])  # (S, A, K)
+        lo = np.maximum(offset - half[:, None, :], -self._half_column)
+        hi = np.minimum(offset + half[:, None, :], self._half_column)
+        cover = np.clip((hi - lo) / (2 * self._half_column), 0.0, 1.0)
+        # Only the poles some column of some cone covers cost anything further.
+        seen = np.flatnonzero(cover.any(axis=(0, 1)))
+        if not len(seen):
+            return None
+        cyl, reflect, r = cyl[seen], reflect[seen], r[seen]
+        dist, half, offset, lo, hi, cover = (
+            dist[:, seen],
+            half[:, seen],
+            offset[..., seen],
+            lo[..., seen],
+            hi[..., seen],
+            cover[..., seen],
+        )
+        # The middle of the visible sliver, as an angle from the pole's bearing.
+        mid = np.clip((lo + hi) / 2 - offset, -half[:, None, :], half[:, None, :])
+        side = dist[:, None, :] * np.sin(mid)
+        depth = np.sqrt(np.maximum(r * r - side * side, 0.0))
+        t = dist[:, None, :] * np.cos(mid) - depth  # (S, A, K)
+        cos_h = depth / r
+        t4 = t[:, :, None, :]
+        z = oz[..., None] + t4 * self._tan_el[None, None, :, None]  # (S, A, E, K)
+        cover4 = np.where(
+            (z >= cyl[:, 3]) & (z <= cyl[:, 4]) & (t4 < bg_t[..., None]) & (t4 > 0),
+            cover[:, :, None, :],
+            0.0,
+        )
+        through = np.cumprod(1.0 - cover4, axis=-1)
+        before = np.concatenate([np.ones_like(through[..., :1]), through[..., :-1]], -1)
+        gain = cover4 * before * (reflect * cos_h)[:, :, None, :]
+        gain = gain * self._cos_el[None, None, :, None]
+        return t4, gain, through[..., -1]

@@ -15,7 +15,7 @@ from typing import NamedTuple, TextIO
 
 from coffeebot.floorplan import Floor
 from coffeebot.sim.world.robot import Pose
-from coffeebot.sim.world.tof import ToFReading
+from coffeebot.sim.world.tof import DEFAULT_SETUP, RangingSetup, ToFReading
 from coffeebot.sim.world.world import World
 
 _LANE_GAIN = 0.004  # rad of heading correction per mm of lateral error
@@ -57,6 +57,7 @@ def hallway_pass(
     rate_hz: float = 10.0,
     steer: bool = True,
     max_time_s: float | None = None,
+    setup: RangingSetup = DEFAULT_SETUP,
 ) -> list[TraceRow]:
     """Drive along the hallway axis until ``to_s_mm``, scanning at ``rate_hz``.
 
@@ -74,7 +75,7 @@ def hallway_pass(
     while world.t_s < max_time_s:
         pose = world.pose
         s, d = floor.to_hallway(pose.x_mm, pose.y_mm)
-        rows.append(TraceRow(world.t_s, pose, s, d, tuple(world.scan())))
+        rows.append(TraceRow(world.t_s, pose, s, d, tuple(world.scan(setup))))
         if s >= to_s_mm or len(world.collisions) > collisions:
             break
         if steer:

@@ -18,12 +18,24 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from coffeebot.floorplan import Floor, FloorPlan, segment_distances
+from coffeebot.hardware.vl53l1x import FULL_ROI, SpadRoi
 from coffeebot.messages import AnchorRange, UwbFix
 from coffeebot.sim.world.elevator import SimElevator
 from coffeebot.sim.world.geometry import Surfaces, footprint_contacts
+from coffeebot.sim.world.materials import element_reflectance
 from coffeebot.sim.world.obstacles import ObstacleSpec, obstacle_surfaces
-from coffeebot.sim.world.robot import Pose, RobotBody, RobotSpec
-from coffeebot.sim.world.tof import SensorArray, ToFModel, ToFReading
+from coffeebot.sim.world.robot import BodyState, Pose, RobotBody, RobotSpec
+from coffeebot.sim.world.tof import (
+    DEFAULT_SETUP,
+    ConeOptics,
+    Layers,
+    RangingNoise,
+    RangingSetup,
+    Returns,
+    SensorArray,
+    ToFReading,
+    range_once,
+)
 
 PHYSICS_DT_S = 0.005
 """Longest physics sub-step: 5 mm at 1 m/s, finer than any wall or leg."""
@@ -53,6 +65,8 @@ class Collision:
     x_mm: float
     y_mm: float
     speed_mm_s: float
+    body: BodyState | None = None
+    """The body just before the touch (pose, signed speed, yaw rate): where it was hit."""
 
 
 class World:
@@ -65,33 +79,41 @@ class World:
         pose: Pose,
         obstacles: Sequence[ObstacleSpec] = (),
         seed: int = 0,
-        tof: ToFModel | None = None,
+        optics: ConeOptics | None = None,
+        noise: RangingNoise | None = None,
         uwb: UwbModel | None = None,
         elevator: SimElevator | None = None,
     ) -> None:
         self.plan = plan
         self.elevator = elevator
         self.robot = robot
+        self.seed = seed
         self.obstacles = tuple(obstacles)
         for obstacle in self.obstacles:
             plan.floor(obstacle.floor)  # raises KeyError naming the missing floor
-        self.tof_model = tof or ToFModel()
+        self.optics = optics or ConeOptics()
+        self.noise = RangingNoise() if noise is None else noise
         self.uwb_model = uwb or UwbModel()
-        self.sensors = SensorArray(robot.sensors, self.tof_model)
+        self.sensors = SensorArray(robot.sensors, self.optics)
         self._tof_rng, self._gyro_rng, self._uwb_rng, self._slip_rng = (
             np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(4)
         )
         self._static: dict[int, Surfaces] = {}
         reach = max((math.hypot(m.x_mm, m.y_mm) for m in robot.sensors), default=0.0)
-        self._cast_radius = self.tof_model.max_range_mm + reach
+        self._cast_radius = self.optics.max_path_mm + reach
         self._contact_radius = math.hypot(robot.length_mm, robot.width_mm) / 2 + 1.0
         self.body = RobotBody(robot, pose)
         self.t_s = 0.0
         self._command_until = math.inf
         """The motor controller's watchdog deadline for the wheel set-point (world time)."""
         self.collisions: list[Collision] = []
+        self.obstacle_start_s: list[float | None] = [
+            None if o.trigger_mm is not None else 0.0 for o in self.obstacles
+        ]
+        """World time at which each obstacle's own clock started (None: not triggered yet)."""
         self._touching: set[str] = set()
-        self._ranges: np.ndarray | None = None
+        self._layers: Layers | None = None
+        self._returns: dict[tuple[int, SpadRoi], Returns] = {}
         self.floor_level = floor
         self.place_robot(pose, floor)  # starting inside something counts as a collision
 
@@ -106,15 +128,31 @@ class World:
         """Ground-truth pose of the body centre."""
         return self.body.pose
 
-    def surfaces(self) -> Surfaces:
-        """Everything on the current floor at the current time."""
+    def surfaces(self, t_s: float | None = None) -> Surfaces:
+        """Everything on the current floor now, or at an earlier world time ``t_s`` (the
+        obstacles are functions of their clocks; the elevator is as it is now)."""
         surfaces = self._static_surfaces(self.floor_level)
         if self.elevator is not None:
             surfaces = surfaces + self.elevator.surfaces(self.floor_level)
-        for obstacle in self.obstacles:
-            if obstacle.moving and obstacle.floor == self.floor_level:
-                surfaces = surfaces + obstacle_surfaces(obstacle, self.t_s)
+        for i, obstacle in enumerate(self.obstacles):
+            if obstacle.timed and obstacle.floor == self.floor_level:
+                surfaces = surfaces + self.obstacle_at(i, t_s)
         return surfaces
+
+    def obstacle_clock_s(self, index: int, t_s: float | None = None) -> float | None:
+        """Obstacle ``index``'s own time now or at world time ``t_s`` (None: its trigger had
+        not fired yet)."""
+        start = self.obstacle_start_s[index]
+        t = self.t_s if t_s is None else t_s
+        return None if start is None or t < start else t - start
+
+    def obstacle_at(self, index: int, t_s: float | None = None) -> Surfaces:
+        """Obstacle ``index`` now or at world time ``t_s``; empty while it is absent."""
+        obstacle = self.obstacles[index]
+        clock = self.obstacle_clock_s(index, t_s)
+        if not obstacle.present_at(clock):
+            return Surfaces.empty()
+        return obstacle_surfaces(obstacle, clock or 0.0)
 
     def _static_surfaces(self, level: int) -> Surfaces:
         if level not in self._static:
@@ -122,14 +160,16 @@ class World:
             # With a simulated elevator its car doors stand in for the plan's door leaf.
             doors = None if self.elevator is None else self.elevator.door_element(level)
             keep = [i for i, s in enumerate(floor.segments) if s.element != doors]
+            elements = tuple(floor.segments[i].element for i in keep)
             surfaces = Surfaces(
                 floor.segment_array[keep],
-                tuple(floor.segments[i].element for i in keep),
+                elements,
                 np.zeros((0, 5)),
                 (),
+                np.array([element_reflectance(e) for e in elements]),
             )
             for obstacle in self.obstacles:
-                if obstacle.floor == level and not obstacle.moving:
+                if obstacle.floor == level and not obstacle.timed:
                     surfaces = surfaces + obstacle_surfaces(obstacle)
             self._static[level] = surfaces
         return self._static[level]
@@ -162,7 +202,19 @@ class World:
                 if self._touching:
                     clear_of = self._contacts(proposed.x, proposed.y, proposed.theta, _RELEASE_MM)
                     self._touching &= clear_of.keys()
-        self._ranges = None
+            self._fire_triggers()
+        self._forget_returns()
+
+    def _fire_triggers(self) -> None:
+        """Start the clock of every obstacle whose trigger point the robot has come close to."""
+        s = self.body.state
+        for i, obstacle in enumerate(self.obstacles):
+            if self.obstacle_start_s[i] is not None or obstacle.trigger_mm is None:
+                continue
+            at = obstacle.trigger_at or (obstacle.x_mm, obstacle.y_mm)
+            near = math.dist(at, (s.x, s.y)) <= obstacle.trigger_mm
+            if near and obstacle.floor == self.floor_level:
+                self.obstacle_start_s[i] = self.t_s
 
     def place_robot(self, pose: Pose, floor: int | None = None) -> None:
         """Put the robot at rest somewhere, on another floor after an elevator ride."""
@@ -170,7 +222,7 @@ class World:
             self.floor_level = self.plan.floor(floor).level
         self.body.place(pose)
         self._touching.clear()
-        self._ranges = None
+        self._forget_returns()
         s = self.body.state
         self._record_contacts(self._contacts(s.x, s.y, s.theta))
 
@@ -197,7 +249,9 @@ class World:
         speed = abs(self.body.state.speed_mm_s)
         for element, (x, y) in contacts.items():
             if element not in self._touching:
-                self.collisions.append(Collision(self.t_s, self.floor_level, element, x, y, speed))
+                self.collisions.append(
+                    Collision(self.t_s, self.floor_level, element, x, y, speed, self.body.state)
+                )
         self._touching |= contacts.keys()
 
     def clearance_mm(self, surfaces: Surfaces | None = None, radius_mm: float = 2000.0) -> float:
@@ -263,24 +317,32 @@ class World:
 
     # --- time-of-flight sensors ------------------------------------------------------------
 
-    def tof_ranges(self) -> np.ndarray:
-        """Noiseless per-ray ranges (sensors, rays) for the current state, cached per step."""
-        if self._ranges is None:
-            s = self.body.state
-            surfaces = self.surfaces()
-            seg, cyl = surfaces.near(s.x, s.y, self._cast_radius)
-            self._ranges = self.sensors.ranges(
-                s.x, s.y, s.theta, surfaces.segments[seg], surfaces.cylinders[cyl]
-            )
-        return self._ranges
+    def _forget_returns(self) -> None:
+        self._layers = None
+        self._returns.clear()
 
-    def tof_reading(self, sensor: int) -> ToFReading:
-        """One ranging of sensor ``sensor`` (index into the robot's mounts), with noise."""
-        return self.sensors.measure(self.tof_ranges()[sensor : sensor + 1], self._tof_rng)[0]
+    def tof_returns(self, sensor: int, roi: SpadRoi = FULL_ROI) -> Returns:
+        """What sensor ``sensor`` (index into the robot's mounts) collects now through
+        ``roi``, noiseless; every sensor's optics are cast once until the world moves."""
+        key = (sensor, roi)
+        if key not in self._returns:
+            if self._layers is None:
+                s = self.body.state
+                surfaces = self.surfaces()
+                near = surfaces.take(*surfaces.near(s.x, s.y, self._cast_radius))
+                self._layers = self.sensors.layers(s.x, s.y, s.theta, near)
+            self._returns[key] = self.sensors.returns(self._layers, sensor, roi)
+        return self._returns[key]
 
-    def scan(self) -> list[ToFReading]:
-        """One ranging of every sensor."""
-        return self.sensors.measure(self.tof_ranges(), self._tof_rng)
+    def tof_reading(
+        self, sensor: int, setup: RangingSetup = DEFAULT_SETUP, roi: SpadRoi = FULL_ROI
+    ) -> ToFReading:
+        """One ranging of sensor ``sensor`` with the chip set up as ``setup``, with noise."""
+        return range_once(self.tof_returns(sensor, roi), setup, self.noise, self._tof_rng)
+
+    def scan(self, setup: RangingSetup = DEFAULT_SETUP) -> list[ToFReading]:
+        """One ranging of every sensor through its full ROI."""
+        return [self.tof_reading(k, setup) for k in range(len(self.sensors.mounts))]
 
     # --- UWB -------------------------------------------------------------------------------
 

@@ -1,0 +1,245 @@
+"""Returns followed over scans with a velocity: who is walking into the robot's way.
+
+The collision rules judge what is in the corridor now. A person stepping in diagonally ahead
+is in it only once it is too late to stop, but before that they are a return in one of the
+outer cones that moves sideways. So every valid front or side reading becomes a point in a
+local odometry frame (dead-reckoned from the wheel speeds between scans: the robot's own
+motion is taken out), and points are associated with tracks that each carry a constant-
+velocity Kalman filter. A reading's position is precise along the cone's axis and vague
+across it (the return may come from anywhere in the cone), which the measurement noise says.
+
+A track confirmed by ``confirm_hits`` points is a *mover* once its speed exceeds
+``mover_speed_mm_s``; :meth:`ReturnTracker.intrusion` predicts, for the robot driving on at
+its speed, whether and when a mover enters the corridor ahead of the body. A static return
+(a wall, a box) yields a track with no velocity and is left to the corridor rules.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Collection, Iterable
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from coffeebot.config import TofSensorConfig, TrackingConfig
+from coffeebot.messages import RangeScan, ReadingStatus
+
+
+@dataclass(frozen=True)
+class Sighting:
+    """One reading as a point in the odometry frame, with its measurement covariance."""
+
+    x_mm: float
+    y_mm: float
+    covariance: np.ndarray
+    sensor: int
+
+
+@dataclass
+class Track:
+    id: int
+    state: np.ndarray
+    """x, y, vx, vy in the odometry frame (mm, mm/s)."""
+    covariance: np.ndarray
+    last_s: float
+    hits: int = 1
+    sensors: set[int] = field(default_factory=set)
+
+    @property
+    def speed_mm_s(self) -> float:
+        return float(math.hypot(self.state[2], self.state[3]))
+
+
+@dataclass(frozen=True)
+class Intrusion:
+    """A mover predicted to be in the corridor ahead of the body."""
+
+    track: int
+    time_s: float
+    """From now until it is in the corridor, the robot driving on."""
+    ahead_mm: float
+    """Where, ahead of the front face (robot frame), when it gets there."""
+    speed_mm_s: float
+
+
+class Odometry2D:
+    """The robot's pose in a local frame, dead-reckoned from speed and yaw rate."""
+
+    def __init__(self) -> None:
+        self.x = self.y = self.theta = 0.0
+
+    def advance(self, speed_mm_s: float, yaw_rate_dps: float, dt_s: float) -> None:
+        w = math.radians(yaw_rate_dps)
+        mid = self.theta + w * dt_s / 2.0
+        self.x += speed_mm_s * dt_s * math.cos(mid)
+        self.y += speed_mm_s * dt_s * math.sin(mid)
+        self.theta += w * dt_s
+
+    def to_local(self, x: float, y: float) -> tuple[float, float]:
+        """An odometry-frame point in the robot frame."""
+        c, s = math.cos(self.theta), math.sin(self.theta)
+        dx, dy = x - self.x, y - self.y
+        return c * dx + s * dy, -s * dx + c * dy
+
+    def to_odom(self, x: float, y: float) -> tuple[float, float]:
+        c, s = math.cos(self.theta), math.sin(self.theta)
+        return self.x + c * x - s * y, self.y + s * x + c * y
+
+    def rotate_to_local(self, vx: float, vy: float) -> tuple[float, float]:
+        c, s = math.cos(self.theta), math.sin(self.theta)
+        return c * vx + s * vy, -s * vx + c * vy
+
+
+class ReturnTracker:
+    """Tracks of valid readings in a local odometry frame (see the module docstring)."""
+
+    def __init__(self, sensors: Iterable[TofSensorConfig], cfg: TrackingConfig) -> None:
+        self.cfg = cfg
+        self.sensors = {s.id: s for s in sensors}
+        self.odometry = Odometry2D()
+        self.tracks: list[Track] = []
+        self._next_id = 1
+        self._last_t: float | None = None
+
+    def sightings(self, scan: RangeScan, skip: Collection[int] = ()) -> list[Sighting]:
+        """Each healthy valid reading within ``max_range_mm`` as a point in the odometry frame,
+        but those of the sensors in ``skip``."""
+        found = []
+        for reading in scan.readings:
+            sensor = self.sensors.get(reading.sensor)
+            if (
+                sensor is None
+                or reading.sensor in skip
+                or not reading.healthy
+                or reading.status is not ReadingStatus.VALID
+                or reading.distance_mm is None
+                or reading.distance_mm > self.cfg.max_range_mm
+            ):
+                continue
+            d = float(reading.distance_mm)
+            look = math.radians(sensor.yaw_deg)
+            lx = sensor.x_mm + d * math.cos(look)
+            ly = sensor.y_mm + d * math.sin(look)
+            x, y = self.odometry.to_odom(lx, ly)
+            across = max(d * math.tan(math.radians(sensor.fov_deg / 2.0)) / 2.0, 20.0)
+            along = self.cfg.range_sigma_mm
+            heading = self.odometry.theta + look
+            c, s = math.cos(heading), math.sin(heading)
+            rotation = np.array([[c, -s], [s, c]])
+            covariance = rotation @ np.diag([along**2, across**2]) @ rotation.T
+            found.append(Sighting(x, y, covariance, reading.sensor))
+        return found
+
+    def update(
+        self,
+        scan: RangeScan,
+        speed_mm_s: float,
+        yaw_rate_dps: float,
+        skip: Collection[int] = (),
+    ) -> list[Track]:
+        """Advance by the robot's motion since the last scan, associate, correct, prune;
+        the readings of the sensors in ``skip`` (the walls) are left out."""
+        now = scan.cycle_start_s
+        dt = 0.0 if self._last_t is None else max(0.0, now - self._last_t)
+        self._last_t = now
+        self.odometry.advance(speed_mm_s, yaw_rate_dps, dt)
+        for track in self.tracks:
+            self._predict(track, dt)
+        sightings = self.sightings(scan, skip)
+        matched = self._associate(sightings)
+        used = set()
+        for t_index, s_index in matched:
+            track, sighting = self.tracks[t_index], sightings[s_index]
+            self._correct(track, sighting, now)
+            used.add(s_index)
+        for k, sighting in enumerate(sightings):
+            if k not in used:
+                self._start(sighting, now)
+        self.tracks = [t for t in self.tracks if now - t.last_s <= self.cfg.forget_s]
+        return self.tracks
+
+    def _predict(self, track: Track, dt: float) -> None:
+        f = np.eye(4)
+        f[0, 2] = f[1, 3] = dt
+        q = self.cfg.accel_sigma_mm_s2**2
+        g = np.array([[dt * dt / 2, 0], [0, dt * dt / 2], [dt, 0], [0, dt]])
+        track.state = f @ track.state
+        track.covariance = f @ track.covariance @ f.T + g @ (q * np.eye(2)) @ g.T
+
+    def _associate(self, sightings: list[Sighting]) -> list[tuple[int, int]]:
+        """Track-sighting pairs within the gate, the best overall (Hungarian)."""
+        if not self.tracks or not sightings:
+            return []
+        gate = self.cfg.gate_sigmas**2
+        cost = np.full((len(self.tracks), len(sightings)), 1e9)
+        for i, track in enumerate(self.tracks):
+            for j, sighting in enumerate(sightings):
+                residual = np.array([sighting.x_mm, sighting.y_mm]) - track.state[:2]
+                innovation = track.covariance[:2, :2] + sighting.covariance
+                d2 = float(residual @ np.linalg.solve(innovation, residual))
+                if d2 <= gate:
+                    cost[i, j] = d2
+        rows, cols = linear_sum_assignment(cost)
+        return [(int(i), int(j)) for i, j in zip(rows, cols, strict=True) if cost[i, j] < 1e9]
+
+    def _correct(self, track: Track, sighting: Sighting, now: float) -> None:
+        h = np.zeros((2, 4))
+        h[0, 0] = h[1, 1] = 1.0
+        residual = np.array([sighting.x_mm, sighting.y_mm]) - h @ track.state
+        s = h @ track.covariance @ h.T + sighting.covariance
+        gain = track.covariance @ h.T @ np.linalg.inv(s)
+        track.state = track.state + gain @ residual
+        track.covariance = (np.eye(4) - gain @ h) @ track.covariance
+        track.last_s = now
+        track.hits += 1
+        track.sensors.add(sighting.sensor)
+
+    def _start(self, sighting: Sighting, now: float) -> None:
+        covariance = np.zeros((4, 4))
+        covariance[:2, :2] = sighting.covariance
+        v = self.cfg.initial_speed_sigma_mm_s**2
+        covariance[2, 2] = covariance[3, 3] = v
+        state = np.array([sighting.x_mm, sighting.y_mm, 0.0, 0.0])
+        self.tracks.append(Track(self._next_id, state, covariance, now, 1, {sighting.sensor}))
+        self._next_id += 1
+
+    def movers(self) -> list[Track]:
+        """Confirmed tracks moving faster than ``mover_speed_mm_s`` over the ground."""
+        return [
+            t
+            for t in self.tracks
+            if t.hits >= self.cfg.confirm_hits and t.speed_mm_s >= self.cfg.mover_speed_mm_s
+        ]
+
+    def intrusion(
+        self,
+        speed_mm_s: float,
+        front_mm: float,
+        half_width_mm: float,
+        horizon_s: float,
+        step_s: float = 0.05,
+    ) -> Intrusion | None:
+        """The earliest mover outside the corridor predicted inside it, ahead of the body,
+        within ``horizon_s``, the robot driving straight on at ``speed_mm_s``; None if none."""
+        best: Intrusion | None = None
+        margin = self.cfg.corridor_margin_mm
+        times = np.arange(0.0, horizon_s + step_s / 2, step_s)
+        for track in self.movers():
+            x0, y0 = self.odometry.to_local(track.state[0], track.state[1])
+            if abs(y0) <= half_width_mm + margin:
+                continue  # in the corridor already: the corridor rules judge it
+            vx, vy = self.odometry.rotate_to_local(track.state[2], track.state[3])
+            # In the robot frame while it drives on, the mover's ground velocity less the
+            # robot's own.
+            xs = x0 + (vx - speed_mm_s) * times
+            ys = y0 + vy * times
+            inside = (np.abs(ys) <= half_width_mm + margin) & (xs >= front_mm)
+            if not inside.any():
+                continue
+            k = int(np.argmax(inside))
+            found = Intrusion(track.id, float(times[k]), float(xs[k] - front_mm), track.speed_mm_s)
+            if best is None or found.time_s < best.time_s:
+                best = found
+        return best
