@@ -12,9 +12,12 @@ $(STAMP): pyproject.toml
 	$(BIN)/pip install --quiet -e '.[test]'
 	touch $(STAMP)
 
-# The demo: the whole daemon on the simulated robot, web UI on http://127.0.0.1:8080
+# The demo: the whole daemon on the simulated robot, web UI on http://127.0.0.1:8080;
+# `make run HOST=0.0.0.0` opens it to other machines (a phone on the same network).
+HOST ?= 127.0.0.1
+PORT ?= 8080
 run: $(STAMP)
-	$(BIN)/coffeebot sim
+	$(BIN)/coffeebot sim --host $(HOST) --port $(PORT)
 
 # On the robot, as root, in a checkout at /opt/coffeebot: the systemd unit, its user and a
 # default /etc/coffeebot (docs/robot.md).

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import logging
 import re
 from pathlib import Path
 
@@ -178,3 +179,13 @@ async def test_an_overflowing_reliable_subscription_is_counted_and_recording_goe
         await settle()
     assert recorder.overflowed == DELIVERY_STATUS.queue_size + 44
     assert [t.messages for t in recording_info(path).topics] == [1]
+
+
+async def test_the_closing_line_says_what_its_counts_mean(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    caplog.set_level(logging.INFO, logger="coffeebot.board.recording")
+    await make_recording(tmp_path / "pass.mcap")
+    [closed] = [r.getMessage() for r in caplog.records if "recording closed" in r.getMessage()]
+    assert "405 messages written, 0 lost; 0 sensor values skipped" in closed
+    assert "keep the newest value" in closed

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
+import functools
 import json
 import logging
 import math
@@ -43,6 +44,8 @@ log = logging.getLogger("coffeebot")
 REPO_ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_BOARD = REPO_ROOT / "boards" / "coffeebot-v1.toml"
 DEFAULT_FLOORPLAN = REPO_ROOT / "floorplans" / "cs-building.toml"
+DEFAULT_FOXGLOVE_PORT = 8765
+"""Foxglove's own default for a WebSocket data source."""
 
 
 def _add_common(parser: argparse.ArgumentParser) -> None:
@@ -64,6 +67,19 @@ def _refused(what: str, exc: Exception) -> None:
         print(f"coffeebot: {what}{line}", file=sys.stderr)
 
 
+def _port(text: str) -> int:
+    value = int(text)
+    if not 0 <= value <= 65535:
+        raise argparse.ArgumentTypeError(f"a port is 0..65535, got {text}")
+    return value
+
+
+def default_state_dir() -> Path:
+    """The demo's orders: ``$XDG_STATE_HOME/coffeebot/sim`` (``~/.local/state/...``)."""
+    root = os.environ.get("XDG_STATE_HOME") or Path.home() / ".local" / "state"
+    return Path(root) / "coffeebot" / "sim"
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="coffeebot", description="Software of an indoor coffee-delivery robot."
@@ -80,6 +96,15 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--speed", type=_positive, default=1.0, help="times real time (default 1)")
     sim.add_argument("--host", default="127.0.0.1", help="web UI address (default 127.0.0.1)")
     sim.add_argument("--port", type=int, default=8080, help="web UI port (default 8080)")
+    sim.add_argument(
+        "--state-dir",
+        type=Path,
+        default=default_state_dir(),
+        help="where the demo keeps its orders across restarts (default %(default)s)",
+    )
+    sim.add_argument(
+        "--fresh", action="store_true", help="start with an empty queue that is not kept"
+    )
     check = sub.add_parser("check-hardware", help="probe every device once and print a table")
     _add_common(check)
     check.add_argument("--sim", action="store_true", help="probe the simulated buses instead")
@@ -105,6 +130,16 @@ def build_parser() -> argparse.ArgumentParser:
     replay.add_argument("--topic", action="append", help="replay only this topic (repeatable)")
     for p in (run, sim, replay):
         p.add_argument("--record", type=Path, metavar="FILE.mcap", help="record the board")
+    for p in (run, sim):
+        p.add_argument(
+            "--foxglove",
+            type=_port,
+            nargs="?",
+            const=DEFAULT_FOXGLOVE_PORT,
+            metavar="PORT",
+            help="serve the board live to Foxglove on the web UI's address "
+            f"(port {DEFAULT_FOXGLOVE_PORT} if not given)",
+        )
     record = sub.add_parser("record", help="inspect a recording")
     record.add_argument("--info", type=Path, metavar="FILE", required=True, help="print summary")
     install = sub.add_parser("install-service", help="install the systemd unit and /etc config")
@@ -123,8 +158,11 @@ async def _sim(config: RobotConfig, plan: FloorPlan, args: argparse.Namespace) -
         return [] if duration is None else [StopAfter(rt, duration)]
 
     setup = demo_setup(plan, args.speed)
-    async with build_sim(config, plan, setup, extra, web=not args.headless) as (rt, _):
-        await serve(rt, args.record)
+    state_dir = None if args.fresh else args.state_dir
+    if state_dir is not None:
+        log.info("orders kept in %s (--fresh for an empty queue)", state_dir)
+    async with build_sim(config, plan, setup, extra, not args.headless, state_dir) as (rt, _):
+        await serve(rt, args.record, args.foxglove)
 
 
 def _sim_command(config: RobotConfig, args: argparse.Namespace) -> int:
@@ -149,6 +187,7 @@ def _sim_command(config: RobotConfig, args: argparse.Namespace) -> int:
             speed=args.speed,
             web=not args.headless,
             record=args.record,
+            foxglove_port=args.foxglove,
         )
     )
     text = report.model_dump_json(indent=2)
@@ -156,7 +195,15 @@ def _sim_command(config: RobotConfig, args: argparse.Namespace) -> int:
         print(text)
     else:
         args.report.write_text(text + "\n")
-        log.info("report written", extra={"path": str(args.report)})
+        log.info(
+            "report written to %s: %s; %d safety stops; %.1f simulated s at %sx real time",
+            args.report,
+            report.ended,
+            report.safety_stops,
+            report.sim_time_s,
+            report.real_time_factor,
+            extra={"path": str(args.report), "real_time_factor": report.real_time_factor},
+        )
     return 0
 
 
@@ -185,13 +232,13 @@ def _check_hardware(config: RobotConfig, args: argparse.Namespace) -> int:
             except ValueError as exc:  # an unknown fault
                 print(f"coffeebot: {exc}", file=sys.stderr)
                 return 2
-            results = run_checks(sim_config, bus)
+            results = run_checks(sim_config, lambda: bus)
     else:
-        bus = open_i2c_bus(config.i2c.bus)
-        try:
-            results = run_checks(config, bus, kernel_hz=kernel_bus_hz(config.i2c.bus))
-        finally:
-            bus.close()
+        results = run_checks(
+            config,
+            functools.partial(open_i2c_bus, config.i2c.bus),
+            kernel_hz=kernel_bus_hz(config.i2c.bus),
+        )
     ok = all(r.ok for r in results)
     if args.json:
         print(json.dumps({"ok": ok, "results": [asdict(r) for r in results]}, indent=2))
@@ -282,7 +329,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "sim":
             return _sim_command(config, args)
         robot = build_robot(config, load_floorplan(args.floorplan))
-        asyncio.run(serve(robot, args.record))
+        asyncio.run(serve(robot, args.record, args.foxglove))
     except ConfigError as exc:
         _refused("configuration error: ", exc)
         return 2

@@ -828,6 +828,25 @@ class WebConfig(Section):
         12.0, gt=0, le=3600, description="one more order allowed per this"
     )
     stream_period_s: float = Field(0.5, gt=0, le=60, description="inspector stream frame interval")
+    progress_period_s: float = Field(
+        2.0, gt=0, le=60, description="a customer's page hears how its delivery goes this often"
+    )
+    eta_speed_mm_s: float = Field(
+        300.0, gt=0, le=SPEED_MM_S, description="average delivery speed for the arrival estimate"
+    )
+    eta_elevator_ride_s: float = Field(
+        60.0, ge=0, le=WAIT_S, description="one elevator ride (call, ride, exit) in the estimate"
+    )
+    stale_after_s: dict[str, Annotated[float, Field(gt=0, le=WAIT_S)]] = Field(
+        {
+            "tof/scan": 0.5,
+            "safety/collision": 0.5,
+            "state/current": 1.0,
+            "motor/odometry": 1.0,
+            "uwb/fix": 2.0,
+        },
+        description="topics that must keep coming: an operator alert when one is older",
+    )
 
     @model_validator(mode="after")
     def _distinct_drinks(self) -> WebConfig:

@@ -2,7 +2,9 @@
 
 The drawing is plain SVG with one ``<g>`` per floor and CSS classes on every element, so the
 web map can restyle it and draw the robot on top. Floor-frame y points up; SVG y points down,
-so points are flipped here and text stays readable.
+so points are flipped here and text stays readable. Each floor ends with an empty group,
+``id="frame-<level>"``, whose transform maps the floor's frame (mm, y up) into the picture:
+the live map draws the robot inside it in floor-plan coordinates.
 """
 
 from __future__ import annotations
@@ -41,6 +43,12 @@ class _Canvas:
         self.width = max(xs) + _MARGIN_MM - self.min_x
         self.height = self.max_y - (min(ys) - _MARGIN_MM)
         self.top = top
+
+    @property
+    def transform(self) -> str:
+        """The SVG transform from floor-frame mm to the picture: the same mapping as
+        :meth:`point`, for a group whose contents are given in the floor's frame."""
+        return f"translate({-self.min_x:g} {self.top + self.max_y:g}) scale(1 -1)"
 
     def point(self, x: float, y: float) -> tuple[float, float]:
         return x - self.min_x, self.top + self.max_y - y
@@ -87,6 +95,8 @@ def _floor_svg(floor: Floor, canvas: _Canvas) -> list[str]:
         )
     title = escape(floor.name or f"Floor {floor.level}")
     out.append(f'<text class="title" x="200" y="{canvas.top + 800:.0f}">{title}</text>')
+    # Empty, in the floor's own frame: what is drawn inside it lands where the plan says.
+    out.append(f'<g class="frame" id="frame-{floor.level}" transform="{canvas.transform}"/>')
     out.append("</g>")
     return out
 
@@ -136,4 +146,6 @@ def render_command(args: argparse.Namespace) -> int:
     except OSError as exc:
         print(f"coffeebot: cannot write {args.output}: {exc.strerror or exc}", file=sys.stderr)
         return 1
+    drawn = args.floor or [f.level for f in plan.floors]
+    print(f"{args.output}: {plan.name or 'floor plan'}, floor {', '.join(map(str, drawn))}")
     return 0

@@ -374,6 +374,31 @@ class MotionStatus(Message):
     detail: str = ""
     stopped_by: StopCause | None = None
     """Set while the safety gate holds the robot (``safety_stop``)."""
+    detour_phase: Literal["confirming", "going_round", "rejoining"] | None = None
+    """Set while lane keeping deals with something in its lane (the detour's phase)."""
+    detour_lane_mm: float | None = None
+    """The lane (``d``, mm left of the hallway axis) the detour holds, once it has one."""
+    detour_until_s_mm: float | None = None
+    """Along the hallway, how far the obstacle being gone round reaches."""
+
+
+class RouteLeg(Message):
+    """The part of a route on one floor, as points in the floor plan's frame (mm)."""
+
+    floor: int
+    points: list[tuple[float, float]]
+
+
+class PlannedRoute(Message):
+    """The route navigation drives now, for people to see (the live map, the customer's
+    arrival estimate); empty ``legs`` once the robot is parked. One leg per floor in order,
+    so every leg after the first is reached by an elevator ride."""
+
+    order_id: str | None = None
+    """The order the robot carries along it; None on the way back to base."""
+    to: str
+    """The room at its end."""
+    legs: list[RouteLeg] = []
 
 
 class ElevatorRequest(Message):
@@ -464,6 +489,7 @@ CURRENT_STATE = Topic("state/current", CurrentState, Delivery.LATEST)
 PARTICLES = Topic("state/particles", ParticleCloud, Delivery.LATEST)
 ORDER_UPDATE = Topic("orders/update", OrderUpdate, Delivery.RELIABLE)
 MOTION_STATUS = Topic("motion/status", MotionStatus, Delivery.LATEST)
+ROUTE = Topic("nav/route", PlannedRoute, Delivery.LATEST)
 ELEVATOR_REQUEST = Topic("elevator/request", ElevatorRequest, Delivery.RELIABLE)
 ELEVATOR_STATE = Topic("elevator/state", ElevatorState, Delivery.LATEST)
 
@@ -485,6 +511,7 @@ ALL_TOPICS: tuple[Topic[Any], ...] = (
     PARTICLES,
     ORDER_UPDATE,
     MOTION_STATUS,
+    ROUTE,
     ELEVATOR_REQUEST,
     ELEVATOR_STATE,
 )

@@ -24,7 +24,7 @@ from coffeebot.messages import (
     MotorCommand,
 )
 from coffeebot.modules.base import Module, ModuleContext
-from coffeebot.modules.motor_driver import MotorDriver
+from coffeebot.modules.motor_driver import COMMANDS, MotorDriver
 from coffeebot.modules.uwb_reader import UwbReader
 from coffeebot.sim.dwm1001 import SimDwm1001
 from coffeebot.sim.motor_controller import SimMotorController
@@ -153,6 +153,7 @@ async def test_stale_command_becomes_stop(
 ) -> None:
     caplog.set_level(logging.INFO)
     async with running(motor_driver, context_for) as board:
+        reports = board.subscribe(HEALTH)
         await board.next(ODOMETRY, timeout=5.0)
         board.publish(MOTOR_COMMAND, MotorCommand(left_mm_s=200, right_mm_s=200))
         await until(lambda: sim_motor.setpoint == (200, 200))
@@ -167,11 +168,20 @@ async def test_stale_command_becomes_stop(
         board.publish(MOTOR_COMMAND, MotorCommand(left_mm_s=0, right_mm_s=0))
         stale = motor_driver.counters.stale_stops
         await until(lambda: motor_driver.counters.stale_stops >= stale + 3)
+        said = []
+        while (report := reports.get_nowait()) is not None:
+            if report.msg.component == COMMANDS:
+                said.append((report.msg.status, report.msg.detail))
     # A stop that is not renewed leaves the robot standing: no second safety stop, only the
     # shutdown's own, which says that it got out.
     assert causes(caplog, "safety_stop") == [
         "no motor command for 0.25 s: motors stopped",
         "shutdown: motors stopped",
+    ]
+    # The stop is on the health topic too, where run reports and the operator's alerts see it.
+    assert said == [
+        (HealthStatus.DEGRADED, "no motor command for 0.25 s: motors stopped"),
+        (HealthStatus.RUNNING, "motor commands resumed"),
     ]
     assert causes(caplog, "safety_clear") == ["motor commands resumed"]
 

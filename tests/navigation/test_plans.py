@@ -9,6 +9,7 @@ from helpers import CONFIG, PLAN
 from coffeebot.messages import DeliveryProblem, OrderStatus
 from coffeebot.navigation.control import SpeedProfile, wheel_speeds
 from coffeebot.navigation.lifecycle import DeliveryLifecycle
+from coffeebot.navigation.path import route_legs
 from coffeebot.navigation.route import ElevatorRide, Move, RoutePlanner
 
 PLANNER = RoutePlanner(
@@ -122,3 +123,19 @@ def test_lifecycle_cancel_before_leaving_needs_no_return() -> None:
     life = DeliveryLifecycle("o2", "205")
     assert life.cancel().status is OrderStatus.CANCELLED
     assert not life.returning
+
+
+def test_a_route_is_drawn_as_one_leg_per_floor_from_where_the_robot_stands() -> None:
+    base = PLANNER.base
+    start = PLANNER.inside_point(PLAN.floor(2), base.door, 500.0)
+    route = PLANNER.route(base.floor, base.door.at_mm, PLANNER.door_place("307"), base.door)
+    first, second = route_legs(route, PLAN, 2, start)
+    assert (first.floor, second.floor) == (2, 3)
+    assert first.points[0] == start
+    # The car rides straight: floor 3's leg starts where floor 2's ended, inside the car.
+    assert second.points[0] == first.points[-1]
+    assert abs(first.points[-1][1]) > PLAN.floor(2).hallway.width_mm / 2
+    # It ends in the lane at 307's door.
+    door = PLAN.find_room("307").door
+    s, d = PLAN.floor(3).to_hallway(*second.points[-1])
+    assert math.isclose(s, door.at_mm) and abs(d) < PLAN.floor(3).hallway.width_mm / 2

@@ -132,6 +132,18 @@ async def test_rate_limit_per_client(client: TestClient) -> None:
     assert form.status == 429
 
 
+@pytest.mark.parametrize("path", ["/api/orders", "/orders"])
+async def test_refused_orders_do_not_use_up_the_rate_limit(client: TestClient, path: str) -> None:
+    for _ in range(8):
+        if path == "/orders":
+            refused = await client.post(path, data={**ORDER, "name": ""})
+        else:
+            refused = await client.post(path, json={**ORDER, "name": ""})
+        assert refused.status == 422
+    accepted = await client.post("/api/orders", json=ORDER)
+    assert accepted.status == 201, await accepted.text()
+
+
 @pytest.mark.parametrize(
     ("method", "path", "body"),
     [
@@ -162,7 +174,11 @@ async def test_no_configured_token_refuses_everyone(
     deps = dataclasses.replace(web_deps(board, orders), operator_token=None)
     client = await aiohttp_client(create_app(deps, board))
     response = await client.post("/api/estop", json={"engaged": True}, headers=OPERATOR)
-    assert response.status == 401
+    # Not "token required" as for a wrong token: no token would do, and it says how to set one.
+    assert response.status == 403
+    error = (await response.json())["error"]
+    assert error.startswith("operator actions are off: no operator token is set")
+    assert "COFFEEBOT_OPERATOR_TOKEN" in error
     assert board.latest(ESTOP) is None
 
 
@@ -245,7 +261,50 @@ async def test_order_events_follow_the_lifecycle(client: TestClient, board: Boar
         for status in (OrderStatus.ON_THE_WAY, OrderStatus.ARRIVED, OrderStatus.DELIVERED):
             board.publish(DELIVERY_STATUS, DeliveryUpdate(order_id=order["id"], status=status))
             await wait_for_status(stream, status.value)
-        assert (await stream.content.read()).strip() == b""  # it ends with the order
+        # It ends with the order: the last word is the timeline of the delivered order.
+        rest = (await stream.content.read()).decode().strip().splitlines()
+        assert rest[0] == "event: timeline" and len(rest) == 2
+        assert json.loads(rest[1].removeprefix("data: "))["final"] is True
+
+
+async def test_the_status_stream_sends_the_timeline_in_plain_words(
+    client: TestClient, board: Board
+) -> None:
+    order = await place(client)
+    async with client.get(keyed(order, "/api/orders/{id}/events")) as stream:
+        timeline = await next_timeline(stream)
+        assert timeline["headline"] == "Being prepared in the tea room"
+        steps = {s["key"]: s["state"] for s in timeline["steps"]}
+        assert steps == {
+            "queued": "done",
+            "preparing": "current",
+            "on_the_way": "todo",
+            "arrived": "todo",
+            "delivered": "todo",
+        }
+        update = DeliveryUpdate(
+            order_id=order["id"], status=OrderStatus.ARRIVED, detail="at the door of 210 (-7 mm)"
+        )
+        board.publish(DELIVERY_STATUS, update)
+        while (timeline := await next_timeline(stream))["status"] != "arrived":
+            pass
+    assert timeline["detail"] == "Please take your latte from the robot, then press the button."
+    assert "mm" not in json.dumps(timeline)
+    assert 170 < timeline["pickup_left_s"] <= 180
+    snapshot = await client.get(keyed(order, "/api/orders/{id}/timeline"))
+    assert (await snapshot.json())["headline"] == "At your door"
+    # Without the key the timeline is nobody's business.
+    assert (await client.get(f"/api/orders/{order['id']}/timeline")).status == 403
+
+
+async def next_timeline(stream: Any) -> dict[str, Any]:
+    named = False
+    async for line in stream.content:
+        if line.startswith(b"event: timeline"):
+            named = True
+        elif named and line.startswith(b"data: "):
+            return dict(json.loads(line[6:]))
+    raise AssertionError("stream ended without a timeline")
 
 
 async def test_xss_in_name_and_notes_is_escaped(client: TestClient) -> None:
@@ -266,7 +325,8 @@ async def test_form_errors_escape_what_was_typed(client: TestClient) -> None:
     assert response.status == 422
     html = await response.text()
     assert "<script>" not in html
-    assert "unknown room" in html
+    assert "&lt;script&gt;" in html  # the notes as typed, escaped
+    assert "Please pick your office." in html
 
 
 async def test_form_submission_redirects_to_the_status_page(client: TestClient) -> None:
@@ -346,3 +406,24 @@ async def test_order_errors_become_http_answers_in_one_place(
     assert (await client.get("/orders/abc")).status == 404  # the page, not JSON
     listed = await client.get("/api/orders", headers=OPERATOR)
     assert listed.status == 200 and await listed.json() == []
+
+
+async def test_the_form_says_what_to_fix_in_plain_words(client: TestClient) -> None:
+    response = await client.post("/orders", data={"drink": "latte", "name": " ", "notes": ""})
+    assert response.status == 422
+    page = await response.text()
+    assert "Please tell us your name" in page and "Please pick your office." in page
+    assert "String should" not in page and "Field required" not in page
+    too_long = await client.post("/orders", data={**ORDER, "name": "x" * 41})
+    assert "Please keep your name to 40 characters." in await too_long.text()
+
+
+async def test_the_form_preselects_no_office_and_lets_the_browser_check_it(
+    client: TestClient,
+) -> None:
+    page = await (await client.get("/")).text()
+    assert "novalidate" not in page
+    room = page[page.index('<select name="room" required>') :]
+    room = room[: room.index("</select>")]
+    assert '<option value="" selected disabled>Choose your office' in room
+    assert room.count("selected") == 1

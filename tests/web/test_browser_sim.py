@@ -1,104 +1,174 @@
 """The web pages on the whole daemon driving the simulated robot, in Debian's Chromium.
 
-An order is placed through the form, staff load the cup with the operator token, and the
-status page follows the robot live; the inspector shows the board moving and the robot on
-the building's map. The screenshots are the README's (``make screenshots``).
+A customer orders through the form, staff load the cup from the inspector's orders table,
+the status page follows the robot with its timeline and arrival estimate, and the inspector
+shows it on the building's real floor plan: in the hallway, where the simulator says it
+is. The screenshots are the README's (``make screenshots``).
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import math
 import os
 import re
 from collections.abc import AsyncIterator
-from pathlib import Path
+from dataclasses import dataclass
 
 import playwright.async_api as playwright
 import pytest
+import pytest_asyncio
 
 from coffeebot.config import load_robot_config
-from coffeebot.floorplan import load_floorplan
 from coffeebot.runtime.assemble import Runtime
 from coffeebot.runtime.service import serve
 from coffeebot.runtime.sim import build_sim
-from coffeebot.sim.simulation import demo_setup
+from coffeebot.sim.simulation import Simulation, demo_setup
 from coffeebot.web import WebModule
+from coffeebot.web.livemap import MapPose
 
-from .test_browser import CHROMIUM, CHROMIUM_ARGS, REPO, SCREENSHOTS
+from .test_browser import (
+    BOARD_FILE,
+    CHROMIUM,
+    CHROMIUM_ARGS,
+    DESKTOP,
+    PHONE,
+    PLAN,
+    SCREENSHOTS,
+    drawn,
+)
+
+pytestmark = pytest.mark.asyncio(loop_scope="module")
 
 TOKEN = "sim-operator-token"
 
 
-@pytest.fixture
-async def robot(monkeypatch: pytest.MonkeyPatch) -> AsyncIterator[Runtime]:
-    config = load_robot_config(REPO / "boards" / "coffeebot-v1.toml")
+@dataclass
+class Demo:
+    url: str
+    runtime: Runtime
+    sim: Simulation
+    browser: playwright.Browser
+
+    def true_pose(self) -> MapPose:
+        with self.sim.lock:
+            pose, floor = self.sim.world.pose, self.sim.world.floor_level
+        return MapPose(x_mm=pose.x_mm, y_mm=pose.y_mm, heading_deg=pose.heading_deg, floor=floor)
+
+    async def page(self, viewport: dict[str, int]) -> playwright.Page:
+        context = await self.browser.new_context(viewport=viewport)  # type: ignore[arg-type]
+        page = await context.new_page()
+        page.set_default_timeout(30_000)
+        return page
+
+
+@pytest_asyncio.fixture(scope="module", loop_scope="module")
+async def demo() -> AsyncIterator[Demo]:
+    config = load_robot_config(BOARD_FILE)
     config = config.model_copy(
         update={"web": config.web.model_copy(update={"host": "127.0.0.1", "port": 0})}
     )
-    monkeypatch.setenv(config.web.operator_token_env, TOKEN)
-    plan = load_floorplan(REPO / "floorplans" / "cs-building.toml")
-    async with build_sim(config, plan, demo_setup(plan, speed=2.0), web=True) as (runtime, _):
-        serving = asyncio.create_task(serve(runtime))
-        web = runtime.module("web")
-        assert isinstance(web, WebModule)
-        await asyncio.wait_for(web.started.wait(), 30)
-        yield runtime
-        runtime.request_stop("test over")
-        with contextlib.suppress(asyncio.CancelledError):
-            await asyncio.wait_for(serving, 30)
+    with pytest.MonkeyPatch.context() as env:
+        env.setenv(config.web.operator_token_env, TOKEN)
+        async with build_sim(config, PLAN, demo_setup(PLAN, speed=2.0)) as (runtime, sim):
+            serving = asyncio.create_task(serve(runtime))
+            web = runtime.module("web")
+            assert isinstance(web, WebModule)
+            await asyncio.wait_for(web.started.wait(), 30)
+            assert web.url is not None
+            async with playwright.async_playwright() as p:
+                browser = await p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+                yield Demo(web.url, runtime, sim, browser)
+                await browser.close()
+            runtime.request_stop("test over")
+            with contextlib.suppress(asyncio.CancelledError):
+                await asyncio.wait_for(serving, 30)
 
 
-@pytest.fixture
-async def browser() -> AsyncIterator[playwright.Browser]:
-    async with playwright.async_playwright() as p:
-        launched = await p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
-        yield launched
-        await launched.close()
+async def until(check: object, what: str, timeout_s: float = 60.0) -> None:
+    """Poll ``check()`` (wall time: the simulation runs at its own pace) until it holds."""
+    assert callable(check)
+    for _ in range(int(timeout_s / 0.1)):
+        if check():
+            return
+        await asyncio.sleep(0.1)
+    raise AssertionError(f"timed out waiting for {what}")
 
 
-async def test_order_on_the_simulated_robot_and_watch_it_drive(
-    robot: Runtime, browser: playwright.Browser
-) -> None:
+def in_the_hallway(pose: MapPose, past_s_mm: float) -> bool:
+    """On floor 2's hallway, well clear of the tea room's door, on the way down it."""
+    floor = PLAN.floor(pose.floor)
+    s, d = floor.to_hallway(pose.x_mm, pose.y_mm)
+    return pose.floor == 2 and s < past_s_mm and abs(d) < floor.hallway.width_mm / 2 - 300
+
+
+async def test_order_load_the_cup_and_watch_the_robot_drive_in_the_hallway(demo: Demo) -> None:
     expect = playwright.expect
-    web = robot.module("web")
-    assert isinstance(web, WebModule) and web.url
-    context = await browser.new_context(viewport={"width": 1100, "height": 800})
-    page = await context.new_page()
-    await page.goto(web.url + "/")
-    await page.select_option("select[name=drink]", "cappuccino")
-    await page.fill("input[name=name]", "Grace")
-    await page.select_option("select[name=room]", "207")
-    await page.click("button[type=submit]")
-    await expect(page.locator("#status-text")).to_have_text("Being prepared in the tea room")
-    order_id = await page.locator("#order").get_attribute("data-order-id")
-
-    loaded = await page.request.post(
-        f"{web.url}/api/orders/{order_id}/cup-loaded",
-        headers={"Authorization": f"Bearer {TOKEN}"},
+    customer = await demo.page(DESKTOP)
+    await customer.goto(demo.url + "/")
+    await customer.select_option("select[name=drink]", "cappuccino")
+    await customer.fill("input[name=name]", "Grace")
+    await customer.select_option("select[name=room]", "211")
+    await customer.click("button[type=submit]")
+    await expect(customer.locator("#status-text")).to_have_text("Being prepared in the tea room")
+    await expect(customer.locator("#detail")).to_have_text(
+        "The robot is in the tea room; staff are putting your cappuccino on it.", timeout=60_000
     )
-    assert loaded.status == 202
-    await expect(page.locator("#status-text")).to_have_text("On the way", timeout=30_000)
-    os.makedirs(SCREENSHOTS, exist_ok=True)
-    await page.screenshot(path=SCREENSHOTS / "order-status.png")
 
-    inspector = await context.new_page()
-    await inspector.goto(web.url + "/inspect")
-    scans = inspector.locator('tr[data-topic="tof/scan"] td').nth(4)
-    await expect(scans).to_have_text(re.compile(r"^\d+$"))
-    first = int(await scans.text_content() or 0)
-    await expect(scans).not_to_have_text(str(first))
-    await expect(inspector.locator("#map g.robot[data-label=estimated]")).to_have_count(1)
-    await expect(inspector.locator("#map g.robot[data-label=true]")).to_have_count(1)
-    await expect(inspector.locator("#map line.ray")).to_have_count(8)
+    # Staff load the cup from the inspector's live orders table.
+    inspector = await demo.page(DESKTOP)
+    await inspector.goto(demo.url + "/inspect")
+    await inspector.fill("#token", TOKEN)
+    await inspector.dispatch_event("#token", "change")
+    row = inspector.locator("#orders-table tbody tr").filter(has_text="Grace")
+    await row.locator("button", has_text="Cup loaded").click()
+    await expect(inspector.locator("#operator-message")).to_have_text(
+        "Cup loaded: Grace's cappuccino to 211 is on its way."
+    )
+    await expect(row.locator("td.status")).to_have_text("On the way")
+    await expect(customer.locator("#status-text")).to_have_text("On the way")
+    await expect(customer.locator("#eta")).to_have_text(re.compile(r"^Arriving in about "))
+    await expect(customer.locator("#steps li.current")).to_have_text("On the way")
+
+    # Out of the tea room and down the hallway: what the README shows.
+    tea_room = PLAN.tea_room.door.at_mm
+    await until(lambda: in_the_hallway(demo.true_pose(), tea_room - 2_500), "the hallway")
+    await expect(inspector.locator("#map polyline.path.route")).to_have_count(1)
+    await expect(inspector.locator("#map polygon.cone")).to_have_count(8)
     await expect(inspector.locator("#map ellipse.uncertainty")).to_have_count(1)
     await expect(inspector.locator("#map g.particles")).to_have_count(1)  # the default fusion
-    await expect(inspector.locator('tr[data-topic="motor/command"] td').nth(4)).not_to_have_text(
-        "0"
-    )
-    # The robot is moving down the hallway: its true pose on the map changes.
-    robot_mark = inspector.locator("#map g.robot[data-label=true]")
-    before = await robot_mark.get_attribute("transform")
-    await expect(robot_mark).not_to_have_attribute("transform", before or "", timeout=15_000)
-    await inspector.screenshot(path=Path(SCREENSHOTS) / "inspector.png", full_page=True)
-    await context.close()
+    os.makedirs(SCREENSHOTS, exist_ok=True)
+    await customer.screenshot(path=SCREENSHOTS / "order-status.png")
+    await inspector.screenshot(path=SCREENSHOTS / "inspector.png")
+
+    # Held by the e-stop, the robot stands still: drawn where the simulator says it is.
+    await inspector.click("#estop")
+    await expect(inspector.locator("#alerts li.critical")).to_contain_text("Emergency stop engaged")
+    still = demo.true_pose()
+    for _ in range(50):
+        await asyncio.sleep(0.2)
+        now = demo.true_pose()
+        if math.dist((now.x_mm, now.y_mm), (still.x_mm, still.y_mm)) < 1:
+            break
+        still = now
+    await asyncio.sleep(1.0)  # a frame or two drawn since it stopped
+    at = await drawn(inspector, "true", demo.true_pose())
+    assert abs(at["x"] - at["want_x"]) < 3 and abs(at["y"] - at["want_y"]) < 3, at
+    assert at["hall_top"] < at["y"] < at["hall_bottom"]
+    assert in_the_hallway(demo.true_pose(), tea_room)
+    await inspector.click("#resume")
+    await expect(inspector.locator("#estop-state")).to_have_text("released")
+
+    # At the door: the countdown, on a phone too; then the customer takes the cup.
+    await expect(customer.locator("#status-text")).to_have_text("At your door", timeout=90_000)
+    await expect(customer.locator("#countdown")).to_have_text(re.compile(r"^The robot waits"))
+    phone = await demo.page(PHONE)
+    await phone.goto(customer.url)
+    await expect(phone.locator("#countdown")).to_be_visible()
+    await phone.screenshot(path=SCREENSHOTS / "order-phone.png")
+    await customer.click("#pickup")
+    await expect(customer.locator("#status-text")).to_have_text("Delivered, enjoy!")
+    await expect(row).to_have_count(0)
+    for page in (customer, inspector, phone):
+        await page.context.close()

@@ -142,7 +142,7 @@ async def test_daemon_killed_on_the_way_fails_the_order_with_reason(
     try:
         failed = await module.get(order.id)
         assert failed.status is OrderStatus.FAILED
-        assert reached.value in failed.detail
+        assert reached.value.replace("_", " ") in failed.detail
         assert dispatched.msg.order_id == waiting.id
         [logged] = [r for r in events(caplog, "order") if r.status == "failed"]  # type: ignore[attr-defined]
         assert logged.cause == failed.detail  # type: ignore[attr-defined]

@@ -2,33 +2,49 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from coffeebot.board import Board
 from coffeebot.config import TofSensorConfig
+from coffeebot.floorplan import load_floorplan
 from coffeebot.messages import (
     ALL_TOPICS,
     CURRENT_STATE,
+    ELEVATOR_REQUEST,
+    ELEVATOR_STATE,
+    MOTION_STATUS,
+    MOVE_INSTRUCTION,
     PARTICLES,
     RANGE_SCAN,
+    ROUTE,
     CurrentState,
+    ElevatorRequest,
+    ElevatorState,
+    MotionState,
+    MotionStatus,
+    MoveInstruction,
     ParticleCloud,
+    PlannedRoute,
     PoseEstimate,
     RangeReading,
     RangeScan,
     ReadingStatus,
+    RouteLeg,
 )
 from coffeebot.modules.orders import OrdersModule
+from coffeebot.sensor_view import ConeShape
 from coffeebot.store import OrderStore
 from coffeebot.web import WebModule
 from coffeebot.web.context import RateLimiter
 from coffeebot.web.graph import module_graph
 from coffeebot.web.livemap import (
-    NO_TARGET_RAY_MM,
     CloudShape,
     EllipseShape,
+    GoalShape,
     MapPose,
-    RayShape,
+    PathShape,
     RobotShape,
     map_frame,
 )
@@ -36,7 +52,9 @@ from coffeebot.web.livemap import (
 from .conftest import web_deps
 
 FRONT = TofSensorConfig(id=3, channel=3, face="front", x_mm=300, y_mm=0, yaw_deg=0)
-LEFT = TofSensorConfig(id=6, channel=6, face="left", x_mm=0, y_mm=250, yaw_deg=90)
+LEFT = TofSensorConfig(id=6, channel=6, face="left", x_mm=0, y_mm=250, yaw_deg=90, roi_spads=4)
+RIGHT = TofSensorConfig(id=0, channel=0, face="right", x_mm=0, y_mm=-250, yaw_deg=-90)
+PLAN = load_floorplan(Path(__file__).resolve().parents[2] / "floorplans" / "cs-building.toml")
 
 
 class ManualClock:
@@ -50,25 +68,107 @@ class ManualClock:
         self.t += seconds
 
 
-def test_rays_start_at_the_mount_and_turn_with_the_robot() -> None:
+def test_cones_start_at_the_mount_turn_with_the_robot_and_say_the_reading() -> None:
     board = Board(ALL_TOPICS)
     readings = [
         RangeReading(sensor=3, status=ReadingStatus.VALID, distance_mm=1000),
         RangeReading(sensor=6, status=ReadingStatus.NO_TARGET),
+        RangeReading(sensor=0, status=ReadingStatus.BUS_ERROR, healthy=False),
     ]
     board.publish(RANGE_SCAN, RangeScan(cycle_start_s=0, cycle_time_s=0.02, readings=readings))
     pose = MapPose(x_mm=5000, y_mm=800, heading_deg=90, floor=3)
-    frame = map_frame(board, lambda: {"estimated": pose}, [FRONT, LEFT])
+    frame = map_frame(board, lambda: {"estimated": pose}, [FRONT, LEFT, RIGHT], 4000.0)
     assert frame.floor == 3
-    front, left, robot = frame.shapes
-    assert isinstance(front, RayShape) and isinstance(left, RayShape)
+    front, left, right, robot = frame.shapes
+    assert isinstance(front, ConeShape) and isinstance(left, ConeShape)
+    assert isinstance(right, ConeShape)
     # Heading 90: the robot's forward is +y on the floor, its left is -x.
-    assert (front.x1_mm, front.y1_mm) == pytest.approx((5000, 1100))
-    assert (front.x2_mm, front.y2_mm) == pytest.approx((5000, 2100))
-    assert (left.x1_mm, left.y1_mm) == pytest.approx((4750, 800))
-    assert (left.x2_mm, left.y2_mm) == pytest.approx((4750 - NO_TARGET_RAY_MM, 800))
-    assert left.status == "no_target"
+    assert (front.x_mm, front.y_mm, front.heading_deg) == pytest.approx((5000, 1100, 90))
+    assert (front.reach, front.range_mm, front.text) == ("hit", 1000, "tof3: 1000 mm")
+    # The cone is as wide as the sensor's configured field of view.
+    # The narrowest region of interest draws the narrowest cone: 15 degrees.
+    assert front.half_fov_deg == 13.5 and left.half_fov_deg == 7.5
+    assert (left.x_mm, left.y_mm, left.heading_deg) == pytest.approx((4750, 800, 180))
+    # Nothing in range: clear as far as the sensor sees, not a fault.
+    assert (left.reach, left.range_mm, left.text) == ("clear", 4000, "tof6: nothing in range")
+    assert (right.reach, right.text) == ("fault", "tof0: no reading (bus error)")
     assert robot == RobotShape(label="estimated", x_mm=5000, y_mm=800, heading_deg=90)
+
+
+def test_the_estimate_is_drawn_with_its_95_percent_ellipse() -> None:
+    board = Board(ALL_TOPICS)
+    pose = PoseEstimate(
+        x_mm=5000,
+        y_mm=0,
+        heading_deg=0,
+        floor=2,
+        sigma_x_mm=100,
+        sigma_y_mm=50,
+        sigma_heading_deg=1,
+    )
+    board.publish(CURRENT_STATE, CurrentState(pose=pose))
+    here = MapPose(x_mm=5000, y_mm=0, heading_deg=0, floor=2)
+    [ellipse] = [
+        s for s in map_frame(board, lambda: {"e": here}, []).shapes if isinstance(s, EllipseShape)
+    ]
+    assert (ellipse.rx_mm, ellipse.ry_mm) == pytest.approx((244.8, 122.4), abs=0.1)
+    # On another floor than the one shown: not drawn.
+    elsewhere = here.model_copy(update={"floor": 3})
+    assert not any(
+        isinstance(s, EllipseShape) for s in map_frame(board, lambda: {"e": elsewhere}, []).shapes
+    )
+
+
+def test_the_route_is_drawn_from_the_robot_on_and_ends_at_the_goal() -> None:
+    board = Board(ALL_TOPICS)
+    legs = [
+        RouteLeg(floor=2, points=[(0, 0), (10_000, -300), (20_000, -300)]),
+        RouteLeg(floor=3, points=[(20_000, -300), (30_000, 300)]),
+    ]
+    board.publish(ROUTE, PlannedRoute(order_id="a", to="307", legs=legs))
+    here = MapPose(x_mm=12_000, y_mm=-250, heading_deg=0, floor=2)
+    [path] = map_frame(board, lambda: {"e": here}, []).shapes[:-1]
+    assert isinstance(path, PathShape) and path.role == "route"
+    assert path.points == [(12_000, -250), (20_000, -300)]
+    # On floor 3 the last leg is shown, with the door it ends at.
+    there = MapPose(x_mm=20_000, y_mm=-300, heading_deg=0, floor=3)
+    path, goal, _ = map_frame(board, lambda: {"e": there}, []).shapes
+    assert isinstance(path, PathShape) and path.points[-1] == (30_000, 300)
+    assert goal == GoalShape(label="307", x_mm=30_000, y_mm=300)
+
+
+def test_a_detour_is_drawn_out_to_its_lane_past_the_obstacle_and_back() -> None:
+    board = Board(ALL_TOPICS)
+    board.publish(
+        MOVE_INSTRUCTION,
+        MoveInstruction(action="follow_lane", floor=2, target_s_mm=20_000, lane_mm=-300),
+    )
+    board.publish(
+        MOTION_STATUS,
+        MotionStatus(
+            instruction_id=1,
+            state=MotionState.AVOIDING,
+            detour_phase="going_round",
+            detour_lane_mm=350,
+            detour_until_s_mm=9_000,
+        ),
+    )
+    here = MapPose(x_mm=8_000, y_mm=-300, heading_deg=0, floor=2)
+    [detour] = [
+        s
+        for s in map_frame(board, lambda: {"e": here}, [], plan=PLAN).shapes
+        if isinstance(s, PathShape)
+    ]
+    assert detour.role == "detour"
+    assert detour.points == [(8_000, -300), (8_600, 350), (9_600, 350), (10_800, -300)]
+
+
+def test_the_map_says_when_the_robot_rides_the_elevator() -> None:
+    board = Board(ALL_TOPICS)
+    board.publish(ELEVATOR_REQUEST, ElevatorRequest(action="send", floor=3))
+    board.publish(ELEVATOR_STATE, ElevatorState(car_floor=2, doors="closed", moving=True))
+    here = MapPose(x_mm=0, y_mm=0, heading_deg=0, floor=2)
+    assert map_frame(board, lambda: {"e": here}, []).caption == "riding the elevator to floor 3"
 
 
 def test_no_pose_draws_nothing() -> None:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import io
+import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -81,9 +82,12 @@ def _args(*argv: str) -> argparse.Namespace:
     return parser.parse_args(list(argv))
 
 
-def test_render_command_writes_one_floor(tmp_path: Path) -> None:
+def test_render_command_writes_one_floor(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     out = tmp_path / "floor3.svg"
     assert render_command(_args(str(CS_BUILDING), "-o", str(out), "--floor", "3")) == 0
+    assert capsys.readouterr().out == f"{out}: CS Building, floor 3\n"
     text = out.read_text()
     assert 'id="floor-3"' in text and 'id="floor-2"' not in text
 
@@ -102,3 +106,26 @@ def test_cli_renders_a_floor_plan(tmp_path: Path) -> None:
     out = tmp_path / "plan.svg"
     assert cli.main(["floorplan", "render", str(CS_BUILDING), "-o", str(out)]) == 0
     assert ET.fromstring(out.read_text()).tag == "{http://www.w3.org/2000/svg}svg"
+
+
+def test_each_floor_has_a_frame_that_maps_plan_mm_into_the_picture(cs_building: FloorPlan) -> None:
+    svg = ET.fromstring(render_svg(cs_building))
+    ns = {"svg": "http://www.w3.org/2000/svg"}
+    for floor in cs_building.floors:
+        group = svg.find(f".//svg:g[@id='floor-{floor.level}']", ns)
+        assert group is not None
+        frame = group.find(f"svg:g[@id='frame-{floor.level}']", ns)
+        assert frame is not None
+        # The frame's transform puts a plan point where the drawing put the hallway's corner.
+        hallway = group.find("svg:polygon[@class='hallway']", ns)
+        assert hallway is not None
+        corner = [float(v) for v in hallway.get("points", "").split()[0].split(",")]
+        tx, ty = (
+            float(v)
+            for v in re.match(
+                r"translate\(([-\d.e]+) ([-\d.e]+)\)", frame.get("transform", "")
+            ).groups()  # type: ignore[union-attr]
+        )
+        assert "scale(1 -1)" in frame.get("transform", "")
+        x, y = floor.from_hallway(0, -floor.hallway.width_mm / 2)
+        assert (x + tx, ty - y) == pytest.approx(corner, abs=0.5)

@@ -57,6 +57,12 @@ def schema_name(model: type[BaseModel]) -> str:
     return f"{model.__module__}.{model.__qualname__}"
 
 
+def topic_schema(topic: Topic[Any]) -> bytes:
+    """The JSON schema of a topic's model, as a recording and the live Foxglove server carry
+    it (encoding :data:`SCHEMA_ENCODING`, named by :func:`schema_name`)."""
+    return json.dumps(topic.model.model_json_schema()).encode()
+
+
 class Recorder:
     """Writes every message on the board's topics to an MCAP file, off the event loop.
 
@@ -123,7 +129,7 @@ class Recorder:
             schema_id = writer.register_schema(
                 name=schema_name(topic.model),
                 encoding=SCHEMA_ENCODING,
-                data=json.dumps(topic.model.model_json_schema()).encode(),
+                data=topic_schema(topic),
             )
             channels[topic.name] = writer.register_channel(
                 topic.name, MESSAGE_ENCODING, schema_id, {"delivery": topic.delivery.value}
@@ -229,9 +235,13 @@ class Recorder:
             await pump
         await asyncio.to_thread(self._finish)
         log.info(
-            "recording closed: %s",
+            "recording closed: %s: %d messages written, %d lost; %d sensor values skipped "
+            "(latest-only topics keep the newest value, the recorder takes what is there)",
             self.path,
-            extra={"written": self.written, "lost": self.lost, "missed": self.missed},
+            self.written,
+            self.lost,
+            self.missed,
+            extra={"written": self.written, "lost": self.lost, "skipped_latest": self.missed},
         )
 
     async def __aenter__(self) -> Recorder:

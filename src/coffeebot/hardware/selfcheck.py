@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import errno
 import logging
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
@@ -40,6 +41,48 @@ class CheckResult:
 
 
 Opener = Callable[[str, int, float], SerialPort]
+
+I2C_HINT = (
+    "check that I2C is enabled (raspi-config, Interface Options, I2C; or dtparam=i2c_arm=on "
+    "in config.txt), that the device node {node} exists, and that this user may open it "
+    "(its permissions; the i2c group)"
+)
+SERIAL_HINT = (
+    "check the cable, that the device node {node} exists, and that this user may open it "
+    "(its permissions; the dialout group)"
+)
+UART_HINT = (
+    "; the Pi's own UART must be enabled with the serial console off (raspi-config, "
+    "Interface Options, Serial Port)"
+)
+PI_UARTS = ("/dev/serial", "/dev/ttyAMA", "/dev/ttyS")
+
+
+def cannot_open(exc: OSError, node: str, hint: str) -> str:
+    """What a builder reads when a device node cannot be opened: the error, then what to do."""
+    what = {
+        errno.ENOENT: f"{node} does not exist",
+        errno.EACCES: f"no permission to open {node}",
+        errno.EPERM: f"no permission to open {node}",
+        errno.EBUSY: f"{node} is in use by another program",
+    }.get(exc.errno or 0, f"cannot open {node}: {exc.strerror or exc}")
+    return f"{what}; {hint.format(node=node)}"
+
+
+def i2c_node(config: RobotConfig) -> str:
+    return f"/dev/i2c-{config.i2c.bus}"
+
+
+def skipped_tof(config: RobotConfig, why: str) -> list[CheckResult]:
+    """One FAIL row per part behind a bus that could not be opened: none of them was seen."""
+    where = f"i2c-{config.i2c.bus} 0x{config.i2c.mux_address:02X}"
+    return [
+        CheckResult("TCA9548A mux", where, False, f"not probed: {why}"),
+        *(
+            CheckResult(f"VL53L1X tof{s.id}", f"channel {s.channel}", False, f"not probed: {why}")
+            for s in sorted(config.tof.sensors, key=lambda s: s.id)
+        ),
+    ]
 
 
 def check_tof(bus: I2CBus, config: RobotConfig) -> list[CheckResult]:
@@ -111,7 +154,7 @@ def check_uwb(config: RobotConfig, opener: Opener) -> CheckResult:
             finally:
                 tag.stop()
     except OSError as exc:
-        return CheckResult("DWM1001 UWB tag", url, False, str(exc))
+        return CheckResult("DWM1001 UWB tag", url, False, _port_error(exc, url))
     return CheckResult("DWM1001 UWB tag", url, False, "shell ok but no lec line parsed")
 
 
@@ -121,7 +164,7 @@ def check_motor(config: RobotConfig, opener: Opener) -> CheckResult:
         with contextlib.closing(opener(url, config.motor.baudrate, PORT_TIMEOUT_S)) as port:
             ident = MotorController(port).identify()
     except (OSError, TimeoutError) as exc:
-        return CheckResult("motor controller", url, False, str(exc))
+        return CheckResult("motor controller", url, False, _port_error(exc, url))
     ok = ident.watchdog_ms == config.motor.watchdog_ms
     return CheckResult(
         "motor controller",
@@ -130,6 +173,15 @@ def check_motor(config: RobotConfig, opener: Opener) -> CheckResult:
         f"firmware {ident.firmware}, watchdog {ident.watchdog_ms} ms"
         + ("" if ok else f" (config says {config.motor.watchdog_ms} ms)"),
     )
+
+
+def _port_error(exc: OSError, url: str) -> str:
+    """A port that would not open says what to check; one that opened and then failed (a
+    timeout, a broken line) keeps the driver's own words."""
+    if isinstance(exc, TimeoutError) or exc.errno is None or "://" in url:
+        return str(exc)
+    hint = SERIAL_HINT + (UART_HINT if url.startswith(PI_UARTS) else "")
+    return cannot_open(exc, url, hint)
 
 
 def check_bus_speed(config: RobotConfig, kernel_hz: int | None) -> list[CheckResult]:
@@ -153,17 +205,25 @@ def check_bus_speed(config: RobotConfig, kernel_hz: int | None) -> list[CheckRes
 
 def run_checks(
     config: RobotConfig,
-    bus: I2CBus,
+    open_bus: Callable[[], I2CBus],
     opener: Opener = open_port,
     kernel_hz: int | None = None,
 ) -> list[CheckResult]:
-    """Every probe once; ``kernel_hz``: the bus clock the kernel reports (None: unknown)."""
-    return [
-        *check_bus_speed(config, kernel_hz),
-        *check_tof(bus, config),
-        check_uwb(config, opener),
-        check_motor(config, opener),
-    ]
+    """Every probe once; ``kernel_hz``: the bus clock the kernel reports (None: unknown). A
+    bus that cannot be opened is a FAIL row for each part behind it, saying what to check;
+    the serial devices are probed all the same."""
+    try:
+        bus = open_bus()
+    except OSError as exc:
+        why = cannot_open(exc, i2c_node(config), I2C_HINT)
+        tof = [CheckResult("I2C bus", f"i2c-{config.i2c.bus}", False, why)]
+        tof += skipped_tof(config, f"{i2c_node(config)} could not be opened")
+    else:
+        try:
+            tof = [*check_bus_speed(config, kernel_hz), *check_tof(bus, config)]
+        finally:
+            bus.close()
+    return [*tof, check_uwb(config, opener), check_motor(config, opener)]
 
 
 class SelfCheckFailed(HardwareError):
@@ -180,14 +240,7 @@ def service_check(
     logs a warning for each part that works but not as the robot description needs."""
 
     def probe() -> str:
-        try:
-            bus = open_bus()
-        except OSError as exc:
-            raise SelfCheckFailed(f"cannot open the I2C bus: {exc}") from exc
-        try:
-            results = run_checks(config, bus, kernel_hz=None if kernel_hz is None else kernel_hz())
-        finally:
-            bus.close()
+        results = run_checks(config, open_bus, kernel_hz=None if kernel_hz is None else kernel_hz())
         failed = [f"{r.component} ({r.where}): {r.detail}" for r in results if not r.ok]
         if failed:
             raise SelfCheckFailed("; ".join(failed))

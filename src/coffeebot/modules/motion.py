@@ -235,8 +235,10 @@ class MotionModule(Module):
             self._stop(ctx.board, gate.reason)
             ctx.board.publish(
                 MOTION_STATUS,
-                self.controller.safety_status(
-                    -1 if ins is None else ins.id, now, gate.reason, gate.cause
+                self._with_detour(
+                    self.controller.safety_status(
+                        -1 if ins is None else ins.id, now, gate.reason, gate.cause
+                    )
                 ),
             )
             return
@@ -258,7 +260,21 @@ class MotionModule(Module):
         """One motor command (with the reason it was allowed) and the status that goes with it."""
         left, right = wheel_speeds(speed_mm_s, yaw_rate_dps, self.config.motor.wheel_base_mm)
         board.publish(MOTOR_COMMAND, MotorCommand(left_mm_s=left, right_mm_s=right, reason=reason))
-        board.publish(MOTION_STATUS, status)
+        board.publish(MOTION_STATUS, self._with_detour(status))
+
+    def _with_detour(self, status: MotionStatus) -> MotionStatus:
+        """The status with the detour lane keeping is on, if any, for people to see."""
+        planner = self.controller.detour
+        detour = planner.detour
+        if detour is None:
+            return status
+        return status.model_copy(
+            update={
+                "detour_phase": detour.phase.value,
+                "detour_lane_mm": detour.lane_mm,
+                "detour_until_s_mm": detour.extent_s_mm,
+            }
+        )
 
     async def run(self, ctx: ModuleContext) -> None:
         self._board = ctx.board

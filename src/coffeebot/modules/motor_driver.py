@@ -30,6 +30,7 @@ from coffeebot.messages import (
     HEALTH,
     MOTOR_COMMAND,
     ODOMETRY,
+    Health,
     HealthStatus,
     MotorCommand,
     Odometry,
@@ -39,6 +40,10 @@ from coffeebot.modules.serial_device import LinkCounters, Opener, SerialDeviceMo
 
 RESET, SILENT = "reset", "silent"
 FRESH, STALE = "fresh", "stale"
+
+
+COMMANDS = "motor commands"
+"""The health component that reports the driver's own stops when commands stop coming."""
 
 
 @dataclass
@@ -181,9 +186,10 @@ class MotorDriver(SerialDeviceModule[MotorCounters]):
             age = ctx.board.age(MOTOR_COMMAND)
             fresh = latest is not None and age is not None and age <= self.command_timeout_s
             if fresh and latest is not None and not self._stopping:
-                commands.update(
+                if commands.update(
                     MOTOR_COMMAND.name, FRESH, Event.SAFETY_CLEAR, "motor commands resumed"
-                )
+                ):
+                    self._commands_health(ctx, HealthStatus.RUNNING, "motor commands resumed")
                 await writer.call(ctrl.set_speeds, latest.msg.left_mm_s, latest.msg.right_mm_s)
                 self.counters.commands += 1
             else:
@@ -191,13 +197,18 @@ class MotorDriver(SerialDeviceModule[MotorCounters]):
                     self.counters.stale_stops += 1
                 if latest is not None and not self._stopping and _moving(latest.msg):
                     # A stop that was not renewed is an idle robot, not a safety stop.
-                    commands.update(
-                        MOTOR_COMMAND.name,
-                        STALE,
-                        Event.SAFETY_STOP,
-                        f"no motor command for {self.command_timeout_s:g} s: motors stopped",
-                    )
+                    why = f"no motor command for {self.command_timeout_s:g} s: motors stopped"
+                    if commands.update(MOTOR_COMMAND.name, STALE, Event.SAFETY_STOP, why):
+                        self._commands_health(ctx, HealthStatus.DEGRADED, why)
                 await writer.call(ctrl.stop)
+
+    def _commands_health(self, ctx: ModuleContext, status: HealthStatus, detail: str) -> None:
+        """The driver's own stop for want of commands, on the health topic as a component
+        (operators and run reports see it beside the collision module's stops)."""
+        ctx.board.publish(
+            HEALTH,
+            Health(module=self.name, component=COMMANDS, status=status, detail=detail),
+        )
 
     async def shutdown(self) -> None:
         """Send a stop now and only stops from here on, and say whether it got out; the

@@ -33,6 +33,7 @@ from coffeebot.messages import (
     MOVE_INSTRUCTION,
     OPERATOR_EVENT,
     ORDER_DISPATCH,
+    ROUTE,
     DeliveryProblem,
     DeliveryUpdate,
     ElevatorRequest,
@@ -41,11 +42,13 @@ from coffeebot.messages import (
     MoveInstruction,
     OperatorEvent,
     OrderDispatch,
+    PlannedRoute,
     PoseEstimate,
     StopCause,
 )
 from coffeebot.modules.base import Module, ModuleContext
 from coffeebot.navigation.lifecycle import DeliveryLifecycle
+from coffeebot.navigation.path import route_legs
 from coffeebot.navigation.route import ElevatorRide, Move, Route, RoutePlanner
 
 POLL_S = 0.2
@@ -69,7 +72,7 @@ class DeliveryAborted(DeliveryError):
 class NavigationModule(Module):
     name = "navigation"
     inputs = (ORDER_DISPATCH, OPERATOR_EVENT, CURRENT_STATE, MOTION_STATUS, ELEVATOR_STATE)
-    outputs = (MOVE_INSTRUCTION, DELIVERY_STATUS, ELEVATOR_REQUEST)
+    outputs = (MOVE_INSTRUCTION, DELIVERY_STATUS, ELEVATOR_REQUEST, ROUTE)
 
     def __init__(self, config: RobotConfig, plan: FloorPlan) -> None:
         self.config = config
@@ -284,7 +287,17 @@ class NavigationModule(Module):
             raise DeliveryAborted("the robot does not know where it is", DeliveryProblem.LOST)
         goal = self.planner.base if room is None else self.planner.door_place(room)
         s, leave = self.planner.where(pose.floor, pose.x_mm, pose.y_mm)
-        return self.planner.route(pose.floor, s, goal, leave)
+        route = self.planner.route(pose.floor, s, goal, leave)
+        life = self._life
+        ctx.board.publish(
+            ROUTE,
+            PlannedRoute(
+                order_id=None if room is None or life is None else life.order_id,
+                to=goal.door.room,
+                legs=route_legs(route, self.planner.plan, pose.floor, (pose.x_mm, pose.y_mm)),
+            ),
+        )
+        return route
 
     async def _serve(self, ctx: ModuleContext, life: DeliveryLifecycle) -> None:
         nav = self.nav
@@ -356,6 +369,7 @@ class NavigationModule(Module):
         except DeliveryAborted as exc:
             ctx.log.error("could not return to base: %s", exc)
         self._instruct(ctx, MoveInstruction(action="stop", detail="parked"))
+        ctx.board.publish(ROUTE, PlannedRoute(to=self.planner.base.door.room))
 
     async def run(self, ctx: ModuleContext) -> None:
         dispatches = ctx.board.subscribe(ORDER_DISPATCH)

@@ -199,9 +199,9 @@ class OrdersModule(Module):
                 detail = "resumed after a restart: the robot had not left the tea room"
             else:
                 status = OrderStatus.FAILED
+                was = order.status.value.replace("_", " ")
                 detail = (
-                    f"the robot restarted while the order was {order.status.value}; "
-                    "staff will check on the cup"
+                    f"the robot restarted while the order was {was}; staff will check on the cup"
                 )
             updated = await self.store.transition(order.id, status, detail, (order.status,))
             if updated is not None:

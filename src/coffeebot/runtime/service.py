@@ -1,5 +1,5 @@
 """Running an assembled daemon as a service until it is asked to stop (a signal, the end of a
-scenario, ``--duration``), recording the board if asked."""
+scenario, ``--duration``), recording the board and serving it to Foxglove if asked."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ from pathlib import Path
 from coffeebot.board import Board
 from coffeebot.board.recording import Recorder
 from coffeebot.config import RobotConfig
+from coffeebot.floorplan import FloorPlan
 from coffeebot.modules.base import Module, ModuleContext
 from coffeebot.runtime.assemble import Runtime
 from coffeebot.systemd import Notifier, control_loop_check, run_as_service
@@ -24,7 +25,21 @@ def recorder(
     return Recorder(board, path, metadata={"robot": config.name})
 
 
-async def serve(runtime: Runtime, record: Path | None = None) -> None:
+def foxglove(
+    board: Board, config: RobotConfig, plan: FloorPlan, port: int | None
+) -> contextlib.AbstractAsyncContextManager[object]:
+    """``--foxglove``: on the web UI's address, so it reaches whom the web UI reaches."""
+    if port is None:
+        return contextlib.nullcontext()
+    # Imported only when asked for: the SDK is a native library the robot need not load.
+    from coffeebot.foxglove_server import FoxgloveServer
+
+    return FoxgloveServer(board, config, plan, port, config.web.host)
+
+
+async def serve(
+    runtime: Runtime, record: Path | None = None, foxglove_port: int | None = None
+) -> None:
     """Run the daemon as a service until asked to stop."""
     # systemd's watchdog kills a stalled daemon with SIGABRT: leave its stacks in the journal.
     faulthandler.enable()
@@ -33,7 +48,10 @@ async def serve(runtime: Runtime, record: Path | None = None) -> None:
     daemon.install_signal_handlers()
     watchdog = config.watchdog
     try:
-        async with recorder(runtime.board, record, config):
+        async with (
+            recorder(runtime.board, record, config),
+            foxglove(runtime.board, config, runtime.plan, foxglove_port),
+        ):
             await run_as_service(
                 daemon,
                 Notifier.from_env(),

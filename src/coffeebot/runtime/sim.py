@@ -41,10 +41,12 @@ async def build_sim(
     setup: SimSetup,
     extra: SimExtraModules | None = None,
     web: bool = True,
+    state_dir: Path | None = None,
 ) -> AsyncIterator[tuple[Runtime, Simulation]]:
     """The daemon on the simulated robot, and its simulation; the devices run while the
-    context is open and the order store lives in a temporary directory (each run starts with
-    an empty queue; one a killed run left behind goes at the next start)."""
+    context is open. The order store lives in ``state_dir`` (the demo's orders survive a
+    restart), or without one in a temporary directory (each run starts with an empty queue;
+    one a killed run left behind goes at the next start)."""
     clock: Clock = MonotonicClock() if setup.wall_clock else SteppedClock(setup.speed)
     world = World(
         plan,
@@ -64,8 +66,10 @@ async def build_sim(
         sigma_y_mm=50.0,
         sigma_heading_deg=5.0,
     )
-    with run_directory() as tmp:
-        store = SimStore(Path(tmp) / "orders.sqlite3", busy_timeout_s=config.store.busy_timeout_s)
+    with contextlib.ExitStack() as stack:
+        if state_dir is None:
+            state_dir = Path(stack.enter_context(run_directory()))
+        store = SimStore(state_dir / "orders.sqlite3", busy_timeout_s=config.store.busy_timeout_s)
         sim = Simulation(world, config, clock, setup.faults, speed=setup.speed, store=store)
         sim.start()
         try:

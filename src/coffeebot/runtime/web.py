@@ -83,5 +83,8 @@ def web_module(
             sensors=config.tof.sensors,
             geometry=config.geometry,
             health=health,
+            plan=plan,
+            max_range_mm=config.tof.max_range_mm,
+            pickup_timeout_s=config.navigation.pickup_timeout_s,
         )
     )

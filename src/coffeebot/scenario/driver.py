@@ -19,15 +19,18 @@ from coffeebot.errors import OrderError
 from coffeebot.floorplan import FloorPlan
 from coffeebot.messages import (
     COLLISION,
+    HEALTH,
     MOTION_STATUS,
     OPERATOR_EVENT,
     ORDER_UPDATE,
+    HealthStatus,
     OperatorEvent,
     OrderStatus,
     OrderUpdate,
     SafetyState,
 )
 from coffeebot.modules.base import Module, ModuleContext
+from coffeebot.modules.motor_driver import COMMANDS
 from coffeebot.orders import Orders
 from coffeebot.scenario.report import (
     OrderOutcome,
@@ -84,7 +87,7 @@ class ScenarioModule(Module):
     """Places the scenario's orders on time, records what happens, ends the run."""
 
     name = "scenario"
-    inputs = (COLLISION, ORDER_UPDATE, MOTION_STATUS)
+    inputs = (COLLISION, ORDER_UPDATE, MOTION_STATUS, HEALTH)
     outputs = (OPERATOR_EVENT,)
 
     def __init__(
@@ -107,13 +110,17 @@ class ScenarioModule(Module):
     async def run(self, ctx: ModuleContext) -> None:
         # Verdicts come 50 times a second on a "latest" topic: a poll would miss a stop that
         # lasts one scan, so a task of its own reads every one as it is published.
-        watching = asyncio.create_task(self._watch_safety(ctx), name="scenario:safety")
+        watching = [
+            asyncio.create_task(self._watch_safety(ctx), name="scenario:safety"),
+            asyncio.create_task(self._watch_motor_stops(ctx), name="scenario:motor-stops"),
+        ]
         try:
             await self._drive(ctx)
         finally:
-            watching.cancel()
+            for task in watching:
+                task.cancel()
             with contextlib.suppress(asyncio.CancelledError):
-                await watching
+                await asyncio.gather(*watching)
 
     async def _watch_safety(self, ctx: ModuleContext) -> None:
         previous = SafetyState.STOP  # the collision module starts in "stop"
@@ -125,6 +132,15 @@ class ScenarioModule(Module):
                         SafetyStop(self.sim.t_s, verdict.msg.reason, verdict.msg.sensor)
                     )
                 previous = state
+
+    async def _watch_motor_stops(self, ctx: ModuleContext) -> None:
+        """The motor driver's own stops (no command came in time while moving) are safety
+        stops too; it reports each on the health topic."""
+        with ctx.board.subscribe(HEALTH) as reports:
+            async for report in reports:
+                health = report.msg
+                if health.component == COMMANDS and health.status is HealthStatus.DEGRADED:
+                    self.log.safety_stops.append(SafetyStop(self.sim.t_s, health.detail, None))
 
     async def _drive(self, ctx: ModuleContext) -> None:
         with ctx.board.subscribe(ORDER_UPDATE) as updates:

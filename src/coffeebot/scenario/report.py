@@ -57,7 +57,8 @@ class Contact(_Report):
 
 
 class SafetyStopEntry(_Report):
-    """The collision verdict turned to "stop"."""
+    """The collision verdict turned to "stop", or the motor driver stopped the motors because
+    no command came in time while they were moving (``sensor`` is None then)."""
 
     t: float
     reason: str

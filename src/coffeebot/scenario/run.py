@@ -25,6 +25,7 @@ async def run_scenario(
     speed: float = 1.0,
     web: bool = False,
     record: Path | None = None,
+    foxglove_port: int | None = None,
 ) -> ScenarioReport:
     """Run the whole daemon through ``scenario`` on the simulated robot; the report."""
     config = scenario.apply_limits(config)
@@ -40,7 +41,7 @@ async def run_scenario(
 
     started = time.monotonic()
     async with build_sim(config, plan, scenario.setup(speed), add_driver, web=web) as (runtime, _):
-        await serve(runtime, record)
+        await serve(runtime, record, foxglove_port)
     report = driver[0].report()
     # What the machine kept up with: below the requested speed, the clock was paced down.
     factor = round(report.sim_time_s / (time.monotonic() - started), 2)

@@ -26,6 +26,7 @@ from coffeebot.web.context import (
     DEPS,
     FRAMES,
     LIMITER,
+    TIMELINES,
     client_key,
     is_operator,
     validation_error,
@@ -95,6 +96,15 @@ async def json_body(request: web.Request) -> bytes:
 
 
 def operator_only(request: web.Request) -> None:
+    deps = request.app[DEPS]
+    if not deps.operator_token:
+        # No token would do: say so, rather than let an operator try theirs again and again.
+        raise web.HTTPForbidden(
+            text=(
+                "operator actions are off: no operator token is set on the robot "
+                f"(set {deps.config.operator_token_env} and restart coffeebot)"
+            )
+        )
     if not is_operator(request):
         raise web.HTTPUnauthorized(
             text="operator token required",
@@ -105,11 +115,11 @@ def operator_only(request: web.Request) -> None:
 @routes.post("/api/orders")
 async def create_order(request: web.Request) -> web.Response:
     body = await json_body(request)
-    check_rate(request)
     try:
         new = NewOrder.model_validate_json(body, context=order_rules(request))
     except ValidationError as exc:
         return validation_error(exc, "order")
+    check_rate(request)  # only orders that would be placed count against the limit
     order = await request.app[DEPS].orders.place(new, client_key(request))
     response = order_json(order, status=201)
     response.headers["Location"] = f"/api/orders/{order.id}?key={order.key}"
@@ -180,22 +190,36 @@ async def elevator_confirm(request: web.Request) -> web.Response:
     return await _event_if(request, "elevator_confirm", OrderStatus.WAITING_FOR_ELEVATOR)
 
 
+@routes.get(f"/api/orders/{ORDER_ID}/timeline")
+async def order_timeline(request: web.Request) -> web.Response:
+    """The order as its customer sees it: steps, plain words, arrival estimate, countdown."""
+    order = await order_for(request)
+    return web.json_response(text=request.app[TIMELINES].timeline(order).model_dump_json())
+
+
 @routes.get(f"/api/orders/{ORDER_ID}/events")
 async def order_events(request: web.Request) -> web.StreamResponse:
-    """The order as JSON each time it (or its place in the queue) changes; ends when it ends.
-    While the orders cannot be read the stream stays open on heartbeats."""
-    orders = request.app[DEPS].orders
-    changes = request.app[CHANGES]
+    """The order as JSON each time it (or its place in the queue) changes, and with it a
+    ``timeline`` event, repeated every ``progress_period_s`` while the robot has the order
+    (the arrival estimate moves); ends when the order ends. While the orders cannot be read
+    the stream stays open on heartbeats."""
+    deps = request.app[DEPS]
+    changes, timelines = request.app[CHANGES], request.app[TIMELINES]
     last = await order_for(request)
     response = await open_event_stream(request)
     payload: str | None = last.model_dump_json()
     while not changes.closed.is_set() and await send_event(response, payload):
+        in_flight = last.status is not OrderStatus.QUEUED
+        if payload is not None or in_flight:
+            timeline = timelines.timeline(last).model_dump_json()
+            if not await send_event(response, timeline, event="timeline"):
+                break
         if last.status.final:
             break
         seen = changes.version
-        await changes.wait(seen, HEARTBEAT_S)
+        await changes.wait(seen, deps.config.progress_period_s if in_flight else HEARTBEAT_S)
         try:
-            order = await orders.get(last.id)
+            order = await deps.orders.get(last.id)
         except OrdersUnavailable:
             payload = None
             continue

@@ -29,12 +29,15 @@ from coffeebot.web.context import (
     FRAMES,
     LIMITER,
     TEMPLATES,
+    TIMELINES,
     RateLimiter,
     error,
 )
 from coffeebot.web.deps import BoardIO, WebDeps
+from coffeebot.web.eta import Pace
 from coffeebot.web.guard import AllowedHosts, add_headers, refusal
 from coffeebot.web.live import Changes, FrameCache
+from coffeebot.web.timeline import TimelineMaker
 
 log = logging.getLogger(__name__)
 
@@ -111,8 +114,18 @@ def create_app(deps: WebDeps, bus: BoardIO) -> web.Application:
     app[DEPS] = deps
     app[ALLOWED_HOSTS] = AllowedHosts(deps.config.allowed_hosts)
     app[BUS] = bus
-    app[CHANGES] = Changes()
-    app[FRAMES] = FrameCache(deps, max_age_s=deps.config.stream_period_s / 2)
+    app[CHANGES] = changes = Changes()
+    app[FRAMES] = FrameCache(deps, changes, max_age_s=deps.config.stream_period_s / 2)
+    app[TIMELINES] = TimelineMaker(
+        deps.board,
+        room_floor={r.id: r.floor for r in deps.rooms}.get,
+        base_floor=None if deps.plan is None else deps.plan.tea_room.floor.level,
+        pace=Pace(
+            travel_mm_s=deps.config.eta_speed_mm_s,
+            elevator_ride_s=deps.config.eta_elevator_ride_s,
+            pickup_timeout_s=deps.pickup_timeout_s,
+        ),
+    )
     app[LIMITER] = RateLimiter(
         deps.config.order_burst, deps.config.order_refill_s, deps.board.clock
     )
@@ -127,11 +140,16 @@ def create_app(deps: WebDeps, bus: BoardIO) -> web.Application:
 
 
 async def _follow_board(app: web.Application) -> AsyncIterator[None]:
-    pump = asyncio.create_task(app[CHANGES].pump(app[BUS]), name="web:follow-board")
+    changes, bus, clock = app[CHANGES], app[BUS], app[DEPS].board.clock
+    pumps = [
+        asyncio.create_task(changes.pump(bus, clock), name="web:follow-orders"),
+        asyncio.create_task(changes.pump_health(bus, clock), name="web:follow-health"),
+    ]
     yield
-    pump.cancel()
+    for pump in pumps:
+        pump.cancel()
     with contextlib.suppress(asyncio.CancelledError):
-        await pump
+        await asyncio.gather(*pumps)
 
 
 async def _end_streams(app: web.Application) -> None:

@@ -12,6 +12,7 @@ from pydantic import ValidationError
 from coffeebot.clock import Clock
 from coffeebot.web.deps import BoardIO, WebDeps
 from coffeebot.web.live import Changes, FrameCache
+from coffeebot.web.timeline import TimelineMaker
 
 
 class RateLimiter:
@@ -50,6 +51,7 @@ CHANGES = web.AppKey("changes", Changes)
 FRAMES = web.AppKey("frames", FrameCache)
 LIMITER = web.AppKey("limiter", RateLimiter)
 TEMPLATES = web.AppKey("templates", jinja2.Environment)
+TIMELINES = web.AppKey("timelines", TimelineMaker)
 
 
 def client_key(request: web.Request) -> str:

@@ -17,6 +17,7 @@ from pydantic import BaseModel
 
 from coffeebot.board import BoardView, Envelope, Subscription, Topic
 from coffeebot.config import GeometryConfig, TofSensorConfig, WebConfig
+from coffeebot.floorplan import FloorPlan
 from coffeebot.messages import Health
 from coffeebot.modules.base import Module
 from coffeebot.orders import Orders
@@ -59,3 +60,9 @@ class WebDeps:
     geometry: GeometryConfig = field(default_factory=GeometryConfig)
     health: Callable[[], Sequence[Health]] | None = None
     """Module health as the supervisor sees it now (``Daemon.health``)."""
+    plan: FloorPlan | None = None
+    """The building: hallway coordinates for the map, the tea room's floor for timelines."""
+    max_range_mm: float = 4000.0
+    """How far the sensors see: a clear cone is drawn this long."""
+    pickup_timeout_s: float = 180.0
+    """How long the robot waits at a door (the customer's countdown)."""

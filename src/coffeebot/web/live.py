@@ -17,7 +17,17 @@ from aiohttp import web
 from pydantic import BaseModel
 
 from coffeebot.board import BoardSnapshot
-from coffeebot.messages import ESTOP, ORDER_UPDATE, EStop, Health
+from coffeebot.clock import Clock
+from coffeebot.messages import ESTOP, HEALTH, ORDER_UPDATE, EStop, Health
+from coffeebot.web.alerts import (
+    Alert,
+    AlertList,
+    Seen,
+    health_alerts,
+    order_alerts,
+    robot_alerts,
+    stale_alerts,
+)
 from coffeebot.web.deps import BoardIO, WebDeps
 from coffeebot.web.livemap import MapFrame, map_frame
 
@@ -28,11 +38,13 @@ HEARTBEAT_S = 15.0
 
 
 class Changes:
-    """A version number that moves whenever an order changes, and the app's closing flag."""
+    """A version number that moves whenever an order changes, the app's closing flag, and
+    what the alerts need from the board's reliable topics (component health, failures)."""
 
     def __init__(self) -> None:
         self.version = 0
         self.closed = asyncio.Event()
+        self.seen = Seen(components={}, failed=[])
         self._changed = asyncio.Event()
 
     def bump(self) -> None:
@@ -57,11 +69,18 @@ class Changes:
     def close(self) -> None:
         self.closed.set()
 
-    async def pump(self, bus: BoardIO) -> None:
+    async def pump(self, bus: BoardIO, clock: Clock) -> None:
         """Follow order updates until cancelled."""
         with bus.subscribe(ORDER_UPDATE) as sub:
-            async for _ in sub:
+            async for envelope in sub:
+                self.seen.note_order(envelope.msg, clock.now())
                 self.bump()
+
+    async def pump_health(self, bus: BoardIO, clock: Clock) -> None:
+        """Follow every health report until cancelled (components report only changes)."""
+        with bus.subscribe(HEALTH) as sub:
+            async for envelope in sub:
+                self.seen.note_health(envelope.msg, clock.now())
 
 
 class TopicValue(BaseModel):
@@ -77,9 +96,15 @@ class InspectorFrame(BaseModel):
     health: list[Health]
     estop: EStop | None
     map: MapFrame
+    alerts: list[Alert]
+    stale_after_s: dict[str, float]
+    orders_version: int
+    """Moves whenever an order changes: an operator's page refreshes its orders table."""
+    operator_actions: bool
+    """Whether an operator token is configured at all."""
 
 
-def inspector_frame(deps: WebDeps) -> InspectorFrame:
+def inspector_frame(deps: WebDeps, changes: Changes, alert_list: AlertList) -> InspectorFrame:
     board = deps.board
     values = {}
     for topic in board.topics:
@@ -90,12 +115,23 @@ def inspector_frame(deps: WebDeps) -> InspectorFrame:
                 text = text[: VALUE_CHARS - 1] + "…"
             values[topic.name] = TopicValue(seq=envelope.seq, text=text)
     estop = board.latest(ESTOP)
+    health = list(deps.health()) if deps.health is not None else []
+    alerts = [
+        *robot_alerts(board),
+        *health_alerts(board, health, changes.seen),
+        *order_alerts(board, changes.seen),
+        *stale_alerts(board, deps.config.stale_after_s),
+    ]
     return InspectorFrame(
         board=board.snapshot(),
         values=values,
-        health=list(deps.health()) if deps.health is not None else [],
+        health=health,
         estop=None if estop is None else estop.msg,
-        map=map_frame(board, deps.poses, deps.sensors),
+        map=map_frame(board, deps.poses, deps.sensors, deps.max_range_mm, deps.plan),
+        alerts=alert_list.update(alerts, board.clock.now()),
+        stale_after_s=deps.config.stale_after_s,
+        orders_version=changes.version,
+        operator_actions=bool(deps.operator_token),
     )
 
 
@@ -104,17 +140,22 @@ class FrameCache:
     ``max_age_s``: twenty open inspectors cost the event loop one frame, not twenty, so they
     cannot crowd out the control loop that shares it."""
 
-    def __init__(self, deps: WebDeps, max_age_s: float) -> None:
+    def __init__(self, deps: WebDeps, changes: Changes, max_age_s: float) -> None:
         self.deps = deps
+        self.changes = changes
         self.max_age_s = max_age_s
+        self.alerts = AlertList()
         self._json: str | None = None
         self._at = 0.0
+        self._version = -1
 
     def json(self) -> str:
         now = self.deps.board.clock.now()
-        if self._json is None or now - self._at >= self.max_age_s:
-            self._json = inspector_frame(self.deps).model_dump_json()
-            self._at = now
+        stale = now - self._at >= self.max_age_s or self._version != self.changes.version
+        if self._json is None or stale:
+            frame = inspector_frame(self.deps, self.changes, self.alerts)
+            self._json = frame.model_dump_json()
+            self._at, self._version = now, frame.orders_version
         return self._json
 
 
@@ -126,9 +167,15 @@ async def open_event_stream(request: web.Request) -> web.StreamResponse:
     return response
 
 
-async def send_event(response: web.StreamResponse, data: str | None) -> bool:
-    """One event (or a comment heartbeat for None); False once the client has gone."""
-    payload = f"data: {data}\n\n" if data is not None else ": heartbeat\n\n"
+async def send_event(
+    response: web.StreamResponse, data: str | None, event: str | None = None
+) -> bool:
+    """One event, named ``event`` if given (or a comment heartbeat for None); False once the
+    client has gone."""
+    if data is None:
+        payload = ": heartbeat\n\n"
+    else:
+        payload = (f"event: {event}\n" if event else "") + f"data: {data}\n\n"
     try:
         await response.write(payload.encode())
     except (ConnectionResetError, RuntimeError):

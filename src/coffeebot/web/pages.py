@@ -10,30 +10,22 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from itertools import groupby
+from pathlib import Path
 from typing import Any
 
 import jinja2
 from aiohttp import web
 from pydantic import ValidationError
 
-from coffeebot.messages import OrderStatus
 from coffeebot.store import NewOrder
 from coffeebot.web.api import ORDER_ID, check_rate, order_for, order_rules, status_link
-from coffeebot.web.context import DEPS, TEMPLATES, client_key, field_errors
+from coffeebot.web.context import DEPS, TEMPLATES, TIMELINES, client_key
 from coffeebot.web.graph import module_graph
+from coffeebot.web.wording import STATUS_TEXT, form_errors
 
 routes = web.RouteTableDef()
 
-STATUS_TEXT: dict[OrderStatus, str] = {
-    OrderStatus.QUEUED: "Waiting in the queue",
-    OrderStatus.PREPARING: "Being prepared in the tea room",
-    OrderStatus.ON_THE_WAY: "On the way",
-    OrderStatus.WAITING_FOR_ELEVATOR: "Waiting for the elevator",
-    OrderStatus.ARRIVED: "At your door",
-    OrderStatus.DELIVERED: "Delivered, enjoy!",
-    OrderStatus.CANCELLED: "Cancelled",
-    OrderStatus.FAILED: "Could not be delivered",
-}
+FAVICON = Path(__file__).parent / "static" / "favicon.svg"
 
 
 def templates() -> jinja2.Environment:
@@ -79,12 +71,12 @@ async def index(request: web.Request) -> web.Response:
 @routes.post("/orders")
 async def submit_order(request: web.Request) -> web.StreamResponse:
     """The form without JavaScript: same model, same rate limit as ``POST /api/orders``."""
-    check_rate(request)
     form = {k: v for k, v in (await request.post()).items() if isinstance(v, str)}
     try:
         new = NewOrder.model_validate(form, context=order_rules(request))
     except ValidationError as exc:
-        return order_form(request, values=form, errors=field_errors(exc), status=422)
+        return order_form(request, values=form, errors=form_errors(exc), status=422)
+    check_rate(request)
     order = await request.app[DEPS].orders.place(new, client_key(request))
     raise web.HTTPSeeOther(status_link(order))
 
@@ -93,7 +85,16 @@ async def submit_order(request: web.Request) -> web.StreamResponse:
 async def order_page(request: web.Request) -> web.Response:
     """The customer's status page, reached by the link with the order's key."""
     order = await order_for(request)
-    return render(request, "order.html", order=order, key=request.query.get("key", ""))
+    timeline = request.app[TIMELINES].timeline(order)
+    return render(
+        request, "order.html", order=order, timeline=timeline, key=request.query.get("key", "")
+    )
+
+
+@routes.get("/favicon.ico")
+async def favicon(request: web.Request) -> web.FileResponse:
+    """Browsers ask for it on every page; the same cup the pages link to."""
+    return web.FileResponse(FAVICON, headers={"Content-Type": "image/svg+xml"})
 
 
 @routes.get("/inspect")
@@ -104,6 +105,7 @@ async def inspect_page(request: web.Request) -> web.Response:
         "length_mm": deps.geometry.length_mm,
         "width_mm": deps.geometry.width_mm,
         "floors": floors,
+        "status_text": {s.value: t for s, t in STATUS_TEXT.items()},
     }
     return render(request, "inspect.html", robot=robot)
 

@@ -1,0 +1,46 @@
+"""A route as the lines a person would draw: the points it passes on each floor.
+
+Motion follows instructions, not lines; this is for people (the live map draws it, the
+customer's arrival estimate measures it). A lane-following move ends at its target on its
+lane, a drive ends at its point, turns add nothing, and an elevator ride starts a new leg on
+the floor it arrives at.
+"""
+
+from __future__ import annotations
+
+from coffeebot.floorplan import FloorPlan
+from coffeebot.messages import MoveInstruction, RouteLeg
+from coffeebot.navigation.route import ElevatorRide, Move, Route
+
+
+def _point(plan: FloorPlan, ins: MoveInstruction) -> tuple[float, float] | None:
+    if ins.floor is None:
+        return None
+    if ins.action == "follow_lane" and ins.target_s_mm is not None:
+        return plan.floor(ins.floor).from_hallway(ins.target_s_mm, ins.lane_mm or 0.0)
+    if ins.action == "drive_to" and ins.x_mm is not None and ins.y_mm is not None:
+        return ins.x_mm, ins.y_mm
+    return None
+
+
+def route_legs(
+    route: Route, plan: FloorPlan, floor: int, start: tuple[float, float]
+) -> list[RouteLeg]:
+    """The route's points from ``start`` on ``floor``, one leg per floor in order."""
+    legs: list[tuple[int, list[tuple[float, float]]]] = [(floor, [start])]
+
+    def add(moves: list[Move]) -> None:
+        for move in moves:
+            point = _point(plan, move.instruction)
+            if point is not None:
+                legs[-1][1].append(point)
+
+    for step in route.steps:
+        if isinstance(step, ElevatorRide):
+            add(step.enter)
+            # The car rides straight up or down: the next floor's leg starts where it stood.
+            legs.append((step.to_floor, [legs[-1][1][-1]]))
+            add(step.exit)
+        else:
+            add([step])
+    return [RouteLeg(floor=level, points=points) for level, points in legs]
