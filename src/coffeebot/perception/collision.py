@@ -177,6 +177,8 @@ class CollisionMonitor:
         self.max_range_mm = max_range_mm
         self.half_width_mm = body_width_mm / 2.0
         self.front_mm = body_length_mm / 2.0
+        self._front_sensor = next(s for s in self.sensors.values() if s.face == "front")
+        """The sensor a tracked mover's finding is filed under (it is no one reading)."""
         self.axle_x_mm = axle_x_mm
         self._front_sweep_mm = math.hypot(self.front_mm - axle_x_mm, self.half_width_mm)
         """How far from the axle the front corners reach when the body turns on the spot."""
@@ -241,8 +243,8 @@ class CollisionMonitor:
         travel = np.arange(0.0, PATH_REACH_MM, PATH_STEP_MM)[:, None]  # (S, 1)
         turn = k * travel
         cos, sin = np.cos(turn), np.sin(turn)
-        cx = a + np.sin(turn) / k - a * cos
-        cy = (1.0 - np.cos(turn)) / k - a * sin
+        cx = a + sin / k - a * cos
+        cy = (1.0 - cos) / k - a * sin
         dx, dy = xs[None, :] - cx, ys[None, :] - cy  # (S, K)
         along = cos * dx + sin * dy
         across = -sin * dx + cos * dy
@@ -416,17 +418,24 @@ class CollisionMonitor:
         )
         if found is None:
             return None
-        front = next(s for s in self.sensors.values() if s.face == "front")
         what = (
             f"someone moving into the way {found.ahead_mm:.0f} mm ahead in {found.time_s:.1f} s "
             f"({found.speed_mm_s:.0f} mm/s)"
         )
         stop_at = stop_distance_mm(cfg, speed) + cfg.hysteresis_mm
         if found.ahead_mm < stop_at:
-            return _Finding(SafetyState.STOP, front, None, what, 0.0, found.ahead_mm, True)
+            return _Finding(
+                SafetyState.STOP, self._front_sensor, None, what, 0.0, found.ahead_mm, True
+            )
         limit = max(cfg.min_slow_speed_mm_s, safe_speed_mm_s(cfg, found.ahead_mm - stop_at))
         return _Finding(
-            SafetyState.SLOW, front, None, f"{what}, slowing", limit, found.ahead_mm, True
+            SafetyState.SLOW,
+            self._front_sensor,
+            None,
+            f"{what}, slowing",
+            limit,
+            found.ahead_mm,
+            True,
         )
 
     def _oncoming(self) -> _Finding | None:
@@ -450,11 +459,12 @@ class CollisionMonitor:
         if worst is None or worst[0] >= self.max_speed_mm_s:
             return None
         limit, gap, closing = worst
-        front = next(s for s in self.sensors.values() if s.face == "front")
         what = f"someone coming towards the robot {gap:.0f} mm ahead ({closing:.0f} mm/s)"
         if limit < cfg.min_slow_speed_mm_s:
-            return _Finding(SafetyState.STOP, front, None, what, 0.0, gap, True)
-        return _Finding(SafetyState.SLOW, front, None, f"{what}, slowing", limit, gap, True)
+            return _Finding(SafetyState.STOP, self._front_sensor, None, what, 0.0, gap, True)
+        return _Finding(
+            SafetyState.SLOW, self._front_sensor, None, f"{what}, slowing", limit, gap, True
+        )
 
     def _lost_mover(self, now: float) -> _Finding | None:
         """Someone who walked out of every cone near the path may step back into it from a
@@ -463,9 +473,10 @@ class CollisionMonitor:
         lost = self.tracker.lost_near(self.front_mm, self.half_width_mm, tracking.lost_reach_mm)
         if lost is None:
             return None
-        front = next(s for s in self.sensors.values() if s.face == "front")
         what = f"someone went out of view beside the path {now - lost.t_s:.1f} s ago, slowing"
-        return _Finding(SafetyState.SLOW, front, None, what, tracking.lost_speed_mm_s, None, True)
+        return _Finding(
+            SafetyState.SLOW, self._front_sensor, None, what, tracking.lost_speed_mm_s, None, True
+        )
 
     def update(
         self,
