@@ -546,7 +546,7 @@ class Probe(Module):
 
     def _world_now(self) -> float:
         now = self.sim.clock.now()
-        return self.sim.world_t(now, now)
+        return self.sim.world_t(now)
 
     async def _changes(
         self,
@@ -623,7 +623,7 @@ def case_end(lane: Lane, setup: Setup) -> EndRule:
 def forward_commands(sim: Simulation) -> list[tuple[float, float]]:
     """(world time, forward speed) of every command the motor controller accepted."""
     return [
-        (sim.world_t(c.time_s, c.time_s), (c.left_mm_s + c.right_mm_s) / 2.0)
+        (sim.world_t(c.time_s), (c.left_mm_s + c.right_mm_s) / 2.0)
         for c in sim.motor.commands
     ]
 

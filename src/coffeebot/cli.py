@@ -61,6 +61,11 @@ def _positive(text: str) -> float:
     return value
 
 
+def _speed(text: str) -> float:
+    """``--speed``: times real time, or ``max`` for as fast as the machine can."""
+    return math.inf if text == "max" else _positive(text)
+
+
 def _refused(what: str, exc: Exception) -> None:
     """One line per problem on stderr, each naming the file and the field (or the part)."""
     for line in str(exc).splitlines() or [type(exc).__name__]:
@@ -93,7 +98,13 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--report", type=Path, metavar="OUT.json", help="scenario report file")
     sim.add_argument("--headless", action="store_true", help="no web UI")
     sim.add_argument("--duration", type=_positive, metavar="S", help="stop after S sim seconds")
-    sim.add_argument("--speed", type=_positive, default=1.0, help="times real time (default 1)")
+    sim.add_argument(
+        "--speed",
+        type=_speed,
+        default=1.0,
+        help="times real time, or 'max': as fast as the machine can (default 1); a run is "
+        "the same at any speed",
+    )
     sim.add_argument("--host", default="127.0.0.1", help="web UI address (default 127.0.0.1)")
     sim.add_argument("--port", type=int, default=8080, help="web UI port (default 8080)")
     sim.add_argument(

@@ -8,13 +8,14 @@ and tests can reason about time without racing the machine.
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import heapq
 import itertools
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable
 from typing import Protocol
+
+from coffeebot.lockstep import Lockstep
 
 
 class Clock(Protocol):
@@ -81,68 +82,52 @@ class ScaledClock:
 class SteppedClock:
     """Simulated time that only the simulated world moves on: what the simulator runs on.
 
-    ``now`` is the world's time; the world module calls :meth:`advance` once per physics
-    step, pacing itself to ``speed`` times the machine's clock when it can. A machine too
-    busy to keep up (other processes, a loaded core) therefore makes a run slower, never
-    different: while the daemon's process gets no CPU, simulated time does not pass either,
-    so no sensor goes stale and no verdict gets old for lack of CPU. While any thread is
-    inside the world (the chips asking for their cones' returns from the I2C worker), time
-    does not move on either (:meth:`hold`): computing the world is not time the robot has.
+    ``now`` is the world's time; the simulation calls :meth:`advance` once per physics step,
+    and only once the daemon has settled (:mod:`coffeebot.lockstep`): the event loop has
+    nothing left to run and every worker thread has finished or waits for a later step. The
+    daemon's computing therefore takes no simulated time, and a run is the same however busy
+    the machine is; the world paces itself to ``speed`` times the machine's clock when it
+    can (``math.inf``: as fast as it can).
 
     Sleeping waits until simulated time has passed, woken by the steps; :meth:`advance` must
-    be called from the event loop the sleepers run on. Until the first step (the hardware
-    self-check, before the daemon's modules start, talks to the simulated chips) time runs
-    freely at ``speed``, as a :class:`ScaledClock` would.
+    be called from the event loop the sleepers run on.
     """
 
     def __init__(self, speed: float = 1.0, start: float = 0.0) -> None:
-        if speed <= 0:
+        if not speed > 0:
             raise ValueError(f"clock speed must be positive, got {speed}")
         self.speed = speed
-        self._free = ScaledClock(speed, start)
-        self._t: float | None = None
-        """Simulated time once the world steps it; None while it still runs freely."""
+        self._t = start
         self._sleepers: list[tuple[float, int, asyncio.Future[None]]] = []
         self._count = itertools.count()
-        self._lock = threading.Lock()
-        self._holds = 0
+        self.lockstep = Lockstep(self.now)
+        """Worker threads' calls, so the world steps only once they are done."""
 
     def now(self) -> float:
-        t = self._t
-        return self._free.now() if t is None else t
+        return self._t
 
-    @contextlib.contextmanager
-    def hold(self) -> Iterator[None]:
-        """Time does not move on while any thread is inside (threads may overlap)."""
-        with self._lock:
-            self._holds += 1
-        try:
-            yield
-        finally:
-            with self._lock:
-                self._holds -= 1
-
-    def advance(self, dt: float) -> bool:
-        """Move time on by ``dt`` and wake whoever slept until then; refused (False) while
-        held."""
-        with self._lock:
-            if self._holds:
-                return False
-            self._t = (self._free.now() if self._t is None else self._t) + dt
-            t = self._t
-        while self._sleepers and self._sleepers[0][0] <= t:
+    def advance(self, dt: float) -> None:
+        """Move time on by ``dt`` and wake whoever slept until then."""
+        self._t += dt
+        while self._sleepers and self._sleepers[0][0] <= self._t:
             _, _, waiter = heapq.heappop(self._sleepers)
             if not waiter.done():
                 waiter.set_result(None)
-        return True
+        self.lockstep.wake()
 
     async def sleep(self, seconds: float) -> None:
-        if self._t is None:
-            await self._free.sleep(seconds)
-            return
         if seconds <= 0:
             await asyncio.sleep(0)
             return
         waiter = asyncio.get_running_loop().create_future()
         heapq.heappush(self._sleepers, (self._t + seconds, next(self._count), waiter))
         await waiter
+
+
+def blocking_sleep(clock: Clock) -> Callable[[float], None]:
+    """A sleep for driver code in a worker thread that agrees with ``clock``."""
+    if isinstance(clock, SteppedClock):
+        return clock.lockstep.sleep
+    if isinstance(clock, ScaledClock):
+        return lambda seconds: time.sleep(max(0.0, seconds) / clock.rate)
+    return time.sleep

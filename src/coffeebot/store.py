@@ -20,7 +20,6 @@ sqlite3 blocks, so all database work runs on one private thread; the event loop 
 
 from __future__ import annotations
 
-import asyncio
 import contextlib
 import hashlib
 import hmac
@@ -28,15 +27,16 @@ import secrets
 import sqlite3
 import time
 from collections.abc import Callable, Collection, Iterator, Sequence
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
 
+from coffeebot.clock import Clock
 from coffeebot.config import DRINK_NAME_CHARS
 from coffeebot.errors import StoreError
+from coffeebot.hardware.worker import DeviceWorker
 from coffeebot.messages import OrderStatus
 
 T = TypeVar("T")
@@ -172,16 +172,19 @@ class OrderStore:
         wall_clock: Callable[[], float] = time.time,
         *,
         busy_timeout_s: float = 1.0,
+        clock: Clock | None = None,
     ) -> None:
+        """``wall_clock`` stamps orders; ``clock`` is the daemon's (the simulator's keeps
+        the store's thread in step with simulated time)."""
         self.path = Path(path)
         self._now = wall_clock
         self._busy_timeout_ms = round(busy_timeout_s * 1000)
-        self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="order-store")
+        self._worker = DeviceWorker("order-store", clock)
         self._closed = False
         try:
-            self._db = self._executor.submit(self._open).result()
+            self._db = self._worker.run_now(self._open)
         except BaseException:
-            self._executor.shutdown()
+            self._worker.join()
             raise
 
     def _open(self) -> sqlite3.Connection:
@@ -235,7 +238,7 @@ class OrderStore:
             except sqlite3.Error as exc:
                 raise StoreError(f"order database {self.path}: {exc}") from exc
 
-        return await asyncio.get_running_loop().run_in_executor(self._executor, guarded)
+        return await self._worker.call(guarded)
 
     @contextlib.contextmanager
     def _transaction(self) -> Iterator[sqlite3.Connection]:
@@ -254,8 +257,8 @@ class OrderStore:
         if self._closed:
             return
         self._closed = True
-        self._executor.submit(self._db.close).result()
-        self._executor.shutdown()
+        self._worker.run_now(self._db.close)
+        self._worker.join()
 
     async def journal_mode(self) -> str:
         return await self._call(lambda: self._db.execute("PRAGMA journal_mode").fetchone()[0])

@@ -79,16 +79,17 @@ async def test_short_scenario_reports_an_undelivered_order(tmp_path: Path) -> No
 
 
 async def test_sensor_nack_shows_as_a_safety_stop(tmp_path: Path) -> None:
-    # The collision module starts in "stop" and clears within about a second of simulated
-    # time (sensors initialised, every face seen clear); the fault comes well after that.
+    # The self-check takes about a second of simulated time, and the collision module starts
+    # in "stop" and clears within about a second more (sensors initialised, every face seen
+    # clear); the fault comes well after that.
     text = (
-        SHORT.replace("time_limit_s = 3", "time_limit_s = 4")
+        SHORT.replace("time_limit_s = 3", "time_limit_s = 5")
         + """
 [[faults]]
 kind = "sensor_nack"
 sensor = 3
-from_s = 2
-to_s = 3
+from_s = 3
+to_s = 4
 """
     )
     report = await run(write(tmp_path, text))

@@ -5,13 +5,14 @@ names its place."""
 
 from __future__ import annotations
 
-import asyncio
 import contextlib
 import errno
 import logging
+import time
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 
+from coffeebot.clock import Clock, blocking_sleep
 from coffeebot.config import RobotConfig
 from coffeebot.errors import HardwareError
 from coffeebot.hardware.dwm1001 import Dwm1001, parse_lec
@@ -20,6 +21,7 @@ from coffeebot.hardware.motor import MotorController
 from coffeebot.hardware.serial_port import SerialPort, open_port
 from coffeebot.hardware.tca9548a import TCA9548A
 from coffeebot.hardware.vl53l1x import MODEL_ID, VL53L1X, DistanceMode
+from coffeebot.hardware.worker import DeviceWorker
 from coffeebot.messages import NOTHING_IN_RANGE, ReadingStatus
 
 log = logging.getLogger(__name__)
@@ -85,7 +87,9 @@ def skipped_tof(config: RobotConfig, why: str) -> list[CheckResult]:
     ]
 
 
-def check_tof(bus: I2CBus, config: RobotConfig) -> list[CheckResult]:
+def check_tof(
+    bus: I2CBus, config: RobotConfig, sleep: Callable[[float], None] = time.sleep
+) -> list[CheckResult]:
     mux = TCA9548A(bus, config.i2c.mux_address)
     where = f"i2c-{config.i2c.bus} 0x{config.i2c.mux_address:02X}"
     try:
@@ -94,7 +98,7 @@ def check_tof(bus: I2CBus, config: RobotConfig) -> list[CheckResult]:
         return [CheckResult("TCA9548A mux", where, False, str(exc))]
     results = [CheckResult("TCA9548A mux", where, True, "control register reads back")]
     for cfg in sorted(config.tof.sensors, key=lambda s: s.id):
-        sensor = VL53L1X(bus, config.i2c.sensor_address, name=f"tof{cfg.id}")
+        sensor = VL53L1X(bus, config.i2c.sensor_address, name=f"tof{cfg.id}", sleep=sleep)
         try:
             mux.select(cfg.channel)
             sensor.init()
@@ -208,10 +212,11 @@ def run_checks(
     open_bus: Callable[[], I2CBus],
     opener: Opener = open_port,
     kernel_hz: int | None = None,
+    sleep: Callable[[float], None] = time.sleep,
 ) -> list[CheckResult]:
-    """Every probe once; ``kernel_hz``: the bus clock the kernel reports (None: unknown). A
-    bus that cannot be opened is a FAIL row for each part behind it, saying what to check;
-    the serial devices are probed all the same."""
+    """Every probe once; ``kernel_hz``: the bus clock the kernel reports (None: unknown);
+    ``sleep`` paces the sensors' polls. A bus that cannot be opened is a FAIL row for each
+    part behind it, saying what to check; the serial devices are probed all the same."""
     try:
         bus = open_bus()
     except OSError as exc:
@@ -220,7 +225,7 @@ def run_checks(
         tof += skipped_tof(config, f"{i2c_node(config)} could not be opened")
     else:
         try:
-            tof = [*check_bus_speed(config, kernel_hz), *check_tof(bus, config)]
+            tof = [*check_bus_speed(config, kernel_hz), *check_tof(bus, config, sleep)]
         finally:
             bus.close()
     return [*tof, check_uwb(config, opener), check_motor(config, opener)]
@@ -234,13 +239,23 @@ def service_check(
     config: RobotConfig,
     open_bus: Callable[[], I2CBus],
     kernel_hz: Callable[[], int | None] | None = None,
+    opener: Opener = open_port,
+    clock: Clock | None = None,
 ) -> Callable[[], Awaitable[str]]:
     """The daemon's start-up self-check (``run_as_service(self_check=...)``): every probe once,
     in a thread; raises naming the failed parts, or the device that cannot be opened, and
-    logs a warning for each part that works but not as the robot description needs."""
+    logs a warning for each part that works but not as the robot description needs.
+    ``clock``: the daemon's (the probes wait in its time)."""
+    sleep = time.sleep if clock is None else blocking_sleep(clock)
 
     def probe() -> str:
-        results = run_checks(config, open_bus, kernel_hz=None if kernel_hz is None else kernel_hz())
+        results = run_checks(
+            config,
+            open_bus,
+            opener,
+            kernel_hz=None if kernel_hz is None else kernel_hz(),
+            sleep=sleep,
+        )
         failed = [f"{r.component} ({r.where}): {r.detail}" for r in results if not r.ok]
         if failed:
             raise SelfCheckFailed("; ".join(failed))
@@ -250,6 +265,10 @@ def service_check(
         return f"self-check: {len(results)} parts ok"
 
     async def check() -> str:
-        return await asyncio.to_thread(probe)
+        worker = DeviceWorker("self-check", clock)
+        try:
+            return await worker.call(probe)
+        finally:
+            worker.close()
 
     return check

@@ -97,7 +97,7 @@ class MotorDriver(SerialDeviceModule[MotorCounters]):
     async def run(self, ctx: ModuleContext) -> None:
         """The connection loop, with a second thread for commands: pyserial allows one reader
         and one writer at once, so commands keep flowing while a read waits."""
-        self._writer = DeviceWorker("motor-tx")
+        self._writer = DeviceWorker("motor-tx", ctx.clock)
         self._commands = Transitions(ctx.log, initial={MOTOR_COMMAND.name: FRESH})
         try:
             await super().run(ctx)

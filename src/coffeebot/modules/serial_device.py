@@ -82,7 +82,7 @@ class SerialDeviceModule(Module, Generic[C]):
         return detail
 
     async def run(self, ctx: ModuleContext) -> None:
-        io = DeviceWorker(self.name)
+        io = DeviceWorker(self.name, ctx.clock)
         self._backoff = Backoff(*self.backoff_s)
         self._link = Transitions(ctx.log, initial={self.port: CONNECTED})
         try:

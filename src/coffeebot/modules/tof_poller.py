@@ -9,10 +9,10 @@ going unhealthy is logged once as ``event=fault`` with the error, and once as
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from coffeebot.clock import blocking_sleep
 from coffeebot.config import I2CConfig, TofConfig, TofSensorConfig
 from coffeebot.hardware.i2c import I2CBus
 from coffeebot.hardware.tca9548a import TCA9548A
@@ -64,10 +64,11 @@ class TofPoller(Module):
         *,
         poll_interval_s: float = 0.002,
         backoff_s: tuple[float, float] = (0.25, 8.0),
-        blocking_sleep: Callable[[float], None] = time.sleep,
+        blocking_sleep: Callable[[float], None] | None = None,
     ) -> None:
         """``open_bus`` makes the bus (smbus2 on the robot, the simulated bus in tests);
-        ``blocking_sleep`` paces the driver's polls inside the bus thread."""
+        ``blocking_sleep`` paces the driver's polls inside the bus thread (by default a sleep
+        that agrees with the daemon's clock)."""
         self.i2c = i2c
         self.tof = tof
         self.open_bus = open_bus
@@ -83,7 +84,8 @@ class TofPoller(Module):
 
     async def run(self, ctx: ModuleContext) -> None:
         bus = self.open_bus()
-        worker = DeviceWorker(f"i2c-{self.i2c.bus}")
+        worker = DeviceWorker(f"i2c-{self.i2c.bus}", ctx.clock)
+        sleep = self.blocking_sleep or blocking_sleep(ctx.clock)
         mux = TCA9548A(bus, self.i2c.mux_address)
         slots = [
             SensorSlot(
@@ -92,7 +94,7 @@ class TofPoller(Module):
                     bus,
                     self.i2c.sensor_address,
                     name=f"VL53L1X tof{cfg.id} on mux channel {cfg.channel}",
-                    sleep=self.blocking_sleep,
+                    sleep=sleep,
                 ),
                 Backoff(*self.backoff_s),
             )

@@ -2,9 +2,9 @@
 
 The robot (:mod:`coffeebot.runtime.robot`) and the simulated robot
 (:mod:`coffeebot.runtime.sim`) differ only in what they pass in: where the I2C bus comes
-from, the serial ports in the config, modules that run before the drivers (the simulated
-world), an elevator interface and the simulator's true pose for the live map. Either way
-every module reads time from the board's clock.
+from, how the serial ports in the config are opened, the clock, an elevator interface and
+the simulator's true pose for the live map. Either way every module reads time from the
+board's clock.
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ from coffeebot.daemon import Daemon
 from coffeebot.floorplan import FloorPlan
 from coffeebot.hardware.i2c import I2CBus
 from coffeebot.hardware.selfcheck import service_check
+from coffeebot.hardware.serial_port import open_port
 from coffeebot.messages import ALL_TOPICS, PoseEstimate
 from coffeebot.modules.angle import AngleModule
 from coffeebot.modules.base import Module
@@ -29,6 +30,7 @@ from coffeebot.modules.motion import MotionModule
 from coffeebot.modules.motor_driver import MotorDriver
 from coffeebot.modules.navigation import NavigationModule
 from coffeebot.modules.orders import OrdersModule
+from coffeebot.modules.serial_device import Opener
 from coffeebot.modules.state import StateModule
 from coffeebot.modules.tof_poller import TofPoller
 from coffeebot.modules.uwb_reader import UwbReader
@@ -77,13 +79,14 @@ def robot_modules(
     config: RobotConfig,
     plan: FloorPlan,
     open_i2c: Callable[[], I2CBus],
+    open_serial: Opener,
     start: PoseEstimate | None,
 ) -> list[Module]:
     """Drivers, perception and state: the modules every run has, in start order."""
     return [
         TofPoller(config.i2c, config.tof, open_i2c),
-        UwbReader(config.uwb),
-        MotorDriver(config.motor),
+        UwbReader(config.uwb, opener=open_serial),
+        MotorDriver(config.motor, opener=open_serial),
         CollisionModule(config, plan),
         AngleModule(config, plan),
         DoorModule(config, plan),
@@ -98,9 +101,9 @@ def assemble(
     clock: Clock,
     open_i2c: Callable[[], I2CBus],
     store: OrderStore,
+    open_serial: Opener = open_port,
     kernel_hz: Callable[[], int | None] | None = None,
     start: PoseEstimate | None = None,
-    before: Sequence[Module] = (),
     elevator: ElevatorInterface | None = None,
     true_pose: TruePose | None = None,
     extra: ExtraModules | None = None,
@@ -109,16 +112,15 @@ def assemble(
     """Build the board and every module from ``config`` and ``plan``.
 
     ``store``: the order database (the caller opens it: on the robot the board file's path,
-    in simulation a temporary one); ``kernel_hz``: the I2C bus clock the kernel runs, for the
-    self-check (a real bus only);
-    ``before``: modules that start ahead of the drivers (the simulated world);
+    in simulation a temporary one); ``open_serial``: opens the serial ports by their names
+    in the config (pyserial on the robot, the simulated lines in simulation);
+    ``kernel_hz``: the I2C bus clock the kernel runs, for the self-check (a real bus only);
     ``elevator``: the building's elevator, if the robot can talk to it; ``true_pose``: a pose
     the live map draws beside the estimate (the simulator's truth); ``web``: serve the UI.
     """
     board = Board(ALL_TOPICS, clock=clock)
     orders = OrdersModule(store, config.store)
-    modules: list[Module] = [*before]
-    modules += robot_modules(config, plan, open_i2c, start)
+    modules = robot_modules(config, plan, open_i2c, open_serial, start)
     modules += navigation_modules(config, plan, elevator)
     modules.append(orders)
     runtime = Runtime(
@@ -127,7 +129,7 @@ def assemble(
         board=board,
         store=store,
         orders=orders,
-        self_check=service_check(config, open_i2c, kernel_hz),
+        self_check=service_check(config, open_i2c, kernel_hz, open_serial, clock),
     )
     if web:
         modules.append(

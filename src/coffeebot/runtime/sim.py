@@ -1,10 +1,14 @@
 """The daemon on the simulated robot: a :class:`~coffeebot.sim.simulation.Simulation` (the
-world behind a simulated I2C bus and two pty devices) under the very same modules, plus the
-``world`` module that steps it, the simulated elevator and the true pose on the live map."""
+world behind a simulated I2C bus and two simulated UART devices) under the very same
+modules, the world stepping alongside, the simulated elevator and the true pose on the live
+map."""
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
+import functools
+import logging
 from collections.abc import AsyncIterator, Callable, Sequence
 from pathlib import Path
 
@@ -15,11 +19,13 @@ from coffeebot.messages import PoseEstimate
 from coffeebot.modules.base import Module
 from coffeebot.runtime.assemble import Runtime, assemble
 from coffeebot.sim.rundir import run_directory
-from coffeebot.sim.simulation import SimElevatorLink, SimSetup, Simulation, WorldModule
+from coffeebot.sim.simulation import SimElevatorLink, SimSetup, Simulation
 from coffeebot.sim.store import SimStore
 from coffeebot.sim.world import RobotSpec, World
 from coffeebot.sim.world.elevator import SimElevator
 from coffeebot.web.livemap import MapPose
+
+log = logging.getLogger(__name__)
 
 SimExtraModules = Callable[[Runtime, Simulation], Sequence[Module]]
 """Modules a caller adds once the runtime and its simulation exist (a scenario's driver)."""
@@ -43,7 +49,7 @@ async def build_sim(
     web: bool = True,
     state_dir: Path | None = None,
 ) -> AsyncIterator[tuple[Runtime, Simulation]]:
-    """The daemon on the simulated robot, and its simulation; the devices run while the
+    """The daemon on the simulated robot, and its simulation; the world runs while the
     context is open. The order store lives in ``state_dir`` (the demo's orders survive a
     restart), or without one in a temporary directory (each run starts with an empty queue;
     one a killed run left behind goes at the next start)."""
@@ -69,26 +75,40 @@ async def build_sim(
     with contextlib.ExitStack() as stack:
         if state_dir is None:
             state_dir = Path(stack.enter_context(run_directory()))
-        store = SimStore(state_dir / "orders.sqlite3", busy_timeout_s=config.store.busy_timeout_s)
-        sim = Simulation(world, config, clock, setup.faults, speed=setup.speed, store=store)
-        sim.start()
+        store = SimStore(
+            state_dir / "orders.sqlite3", busy_timeout_s=config.store.busy_timeout_s, clock=clock
+        )
+        sim = Simulation(world, config, clock, setup.faults, store=store)
+        runtime = assemble(
+            sim.config,
+            plan,
+            clock=clock,
+            open_i2c=lambda: sim.tof.bus,
+            store=store,
+            open_serial=sim.open_serial,
+            start=start,
+            elevator=SimElevatorLink(sim),
+            true_pose=true_pose(sim),
+            extra=None if extra is None else lambda runtime: extra(runtime, sim),
+            web=web,
+        )
+        # The world runs from before the daemon's self-check until after its shutdown.
+        world_task = asyncio.create_task(sim.run(), name="simulated world")
+        world_task.add_done_callback(functools.partial(_world_ended, runtime))
         try:
-            yield (
-                assemble(
-                    sim.config,
-                    plan,
-                    clock=clock,
-                    open_i2c=lambda: sim.tof.bus,
-                    store=store,
-                    start=start,
-                    before=[WorldModule(sim)],
-                    elevator=SimElevatorLink(sim),
-                    true_pose=true_pose(sim),
-                    extra=None if extra is None else lambda runtime: extra(runtime, sim),
-                    web=web,
-                ),
-                sim,
-            )
+            yield runtime, sim
         finally:
+            world_task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await world_task
             sim.close()
             store.close()
+
+
+def _world_ended(runtime: Runtime, task: asyncio.Task[None]) -> None:
+    """A simulator that fails ends the run, saying why (the daemon would wait for time)."""
+    if task.cancelled() or task.exception() is None:
+        return
+    error = task.exception()
+    log.error("the simulated world failed: %s", error, exc_info=error)
+    runtime.request_stop(f"the simulated world failed: {error}")

@@ -1,4 +1,4 @@
-"""A simulated DWM1001 tag on a pseudo-terminal, speaking the PANS UART shell.
+"""A simulated DWM1001 tag on a serial line, speaking the PANS UART shell.
 
 Modelled: TLV mode after boot (text is answered with ``@\\x01\\x01``), double Enter into the
 shell, echo and ``dwm> `` prompt, the ``lec``/``lep`` toggles, ``reset`` (reboot into TLV
@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 from coffeebot.hardware.dwm1001 import PROMPT, TLV_UNKNOWN_COMMAND
 from coffeebot.messages import AnchorRange, UwbFix
-from coffeebot.sim.pty import PtyDevice
+from coffeebot.sim.uart import Line, UartDevice
 
 TruthFn = Callable[[], tuple[float, float, float]]
 """The tag's true position (x, y, z) in mm."""
@@ -46,7 +46,7 @@ DEFAULT_ANCHORS = (
 BANNER = b"\r\nDWM1001 TWR Real Time Location System (simulated)\r\n\r\n"
 
 
-class SimDwm1001(PtyDevice):
+class SimDwm1001(UartDevice):
     def __init__(
         self,
         truth_fn: TruthFn | None = None,
@@ -61,6 +61,7 @@ class SimDwm1001(PtyDevice):
         seed: int = 0,
         clock: Callable[[], float] = time.monotonic,
         tick_s: float = 0.005,
+        line: Line | None = None,
     ) -> None:
         if (truth_fn is None) == (fix_fn is None):
             raise ValueError("give exactly one of truth_fn and fix_fn")
@@ -76,7 +77,7 @@ class SimDwm1001(PtyDevice):
         self.resets = 0
         self.commands: list[str] = []  # every shell command received, for tests
         self._rng = random.Random(seed)
-        super().__init__("dwm1001", clock=clock, tick_s=tick_s)
+        super().__init__("dwm1001", clock=clock, tick_s=tick_s, line=line)
 
     def on_plugged(self) -> None:
         with self._lock:

@@ -16,7 +16,6 @@ Faults are attributes set from the test: ``SimI2CBus.timeout``, ``SimTCA9548A.na
 
 from __future__ import annotations
 
-import contextlib
 import ctypes
 import errno
 import os
@@ -71,16 +70,12 @@ class SimI2CDevice(Protocol):
 
 class SimI2CBus:
     """The upstream bus. Muxes attached to it route addresses they do not own to the devices
-    on their enabled channels. ``hold`` is entered around every transfer: the simulator
-    passes its clock's, so the Python the simulated chips run takes no simulated time."""
+    on their enabled channels."""
 
-    def __init__(
-        self, hold: Callable[[], contextlib.AbstractContextManager[None]] | None = None
-    ) -> None:
+    def __init__(self) -> None:
         self.devices: dict[int, SimI2CDevice] = {}
         self.muxes: list[SimTCA9548A] = []
         self.timeout = False
-        self._hold = hold or contextlib.nullcontext
 
     def attach(self, device: SimI2CDevice) -> None:
         self.devices[device.address] = device
@@ -88,22 +83,19 @@ class SimI2CBus:
             self.muxes.append(device)
 
     def i2c_rdwr(self, *msgs: i2c_msg) -> None:
-        with self._hold():
-            for msg in msgs:
-                device = self._route(msg.addr)
-                if msg.flags & I2C_M_RD:
-                    data = device.read(msg.len)
-                    ctypes.memmove(msg.buf, data, msg.len)
-                else:
-                    device.write(bytes(msg))
+        for msg in msgs:
+            device = self._route(msg.addr)
+            if msg.flags & I2C_M_RD:
+                data = device.read(msg.len)
+                ctypes.memmove(msg.buf, data, msg.len)
+            else:
+                device.write(bytes(msg))
 
     def write_byte(self, i2c_addr: int, value: int) -> None:
-        with self._hold():
-            self._route(i2c_addr).write(bytes([value]))
+        self._route(i2c_addr).write(bytes([value]))
 
     def read_byte(self, i2c_addr: int) -> int:
-        with self._hold():
-            return self._route(i2c_addr).read(1)[0]
+        return self._route(i2c_addr).read(1)[0]
 
     def close(self) -> None:
         """Nothing to release; present because smbus2.SMBus has it."""
@@ -398,9 +390,8 @@ def make_tof_hardware(
     clock: Callable[[], float] = time.monotonic,
     noise: RangingNoise | None = None,
     seed: int = 0,
-    hold: Callable[[], contextlib.AbstractContextManager[None]] | None = None,
 ) -> SimTofHardware:
-    bus = SimI2CBus(hold)
+    bus = SimI2CBus()
     mux = SimTCA9548A(mux_address)
     bus.attach(mux)
     sensors = {}

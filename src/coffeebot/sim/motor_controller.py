@@ -1,4 +1,4 @@
-"""A simulated motor controller on a pseudo-terminal, obeying ``docs/motor-protocol.md``.
+"""A simulated motor controller on a serial line, obeying ``docs/motor-protocol.md``.
 
 The controller drives a :class:`Drive`: the motors, encoders and gyro behind it. The default
 :class:`IdealDrive` makes wheels follow their set-points at once, each scaled by its own
@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from typing import NamedTuple, Protocol
 
 from coffeebot.hardware.motor import MAX_LINE, WATCHDOG_FLAG, WATCHDOG_MS, decode, encode
-from coffeebot.sim.pty import PtyDevice
+from coffeebot.sim.uart import Line, UartDevice
 
 FIRMWARE = "sim-1.0"
 TELEMETRY_HZ = 50
@@ -108,20 +108,21 @@ class IdealDrive:
         )
 
 
-class SimMotorController(PtyDevice):
+class SimMotorController(UartDevice):
     def __init__(
         self,
         drive: Drive | None = None,
         *,
         clock: Callable[[], float] = time.monotonic,
         tick_s: float = 0.005,
+        line: Line | None = None,
     ) -> None:
         self.drive: Drive = drive or IdealDrive()
         self.commands: list[Command] = []
         self.watchdog_trips = 0
         self.rx_errors = 0
         self.silent = False
-        super().__init__("motor", clock=clock, tick_s=tick_s)
+        super().__init__("motor", clock=clock, tick_s=tick_s, line=line)
 
     def on_plugged(self) -> None:
         self.reset()

@@ -1,10 +1,13 @@
 """The simulated robot under the daemon: one :class:`World` behind the simulated buses.
 
-The world answers the simulated chips from several threads (the I2C worker reading the
-VL53L1X registers, the two pty devices) while the ``world`` module steps it on the event
-loop, so every access goes through :attr:`Simulation.lock`. Time is the daemon's clock: the
-world is stepped to ``clock.now()``, and the chips read the same clock, so a sped-up clock
-speeds up everything together.
+The world answers the simulated chips from the I2C worker thread (reading the VL53L1X
+registers) while :meth:`Simulation.run` steps it on the event loop, so every access goes
+through :attr:`Simulation.lock`. Time is the daemon's clock: the world is stepped to
+``clock.now()``, and the chips read the same clock. On the simulator's
+:class:`~coffeebot.clock.SteppedClock` the world steps only when the daemon has settled
+(:mod:`coffeebot.lockstep`), so a run depends on its seed alone, not on the machine's load.
+The two UART devices sit on in-process serial lines (:meth:`Simulation.open_serial`) whose
+read timeouts are simulated time, and answer once per step.
 
 Reachable from outside as ``Runtime.sim``: ``world`` for ground truth (reports, the live
 map), :meth:`place_robot` for what moves the robot other than its wheels (the elevator).
@@ -20,25 +23,24 @@ import contextlib
 import math
 import threading
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Sequence, Sized
 from dataclasses import dataclass, field
 
 from coffeebot.clock import Clock, SteppedClock
 from coffeebot.config import RobotConfig
 from coffeebot.floorplan import FloorPlan
+from coffeebot.hardware.serial_port import SerialPort
 from coffeebot.hardware.vl53l1x import SpadRoi
+from coffeebot.lockstep import Lockstep
 from coffeebot.messages import ElevatorRequest, ElevatorState, UwbFix
-from coffeebot.modules.base import Module, ModuleContext
 from coffeebot.sim.dwm1001 import SimDwm1001
 from coffeebot.sim.faults import Fault, FaultRecord
 from coffeebot.sim.i2c import make_tof_hardware
 from coffeebot.sim.motor_controller import DriveSample, SimMotorController
+from coffeebot.sim.serial_line import MemoryLine
 from coffeebot.sim.store import SimStore
 from coffeebot.sim.world import ObstacleSpec, Pose, World
 from coffeebot.sim.world.tof import Returns
-
-DEVICE_TICK_S = 0.005
-"""Simulated seconds between two device thread ticks (motor telemetry is every 20 ms)."""
 
 
 @dataclass
@@ -59,7 +61,7 @@ class WorldDrive:
         self, left_mm_s: float, right_mm_s: float, now: float, until: float = math.inf
     ) -> None:
         with self.sim.world_time() as world:
-            world.command_wheels(left_mm_s, right_mm_s, until_s=self.sim.world_t(until, now))
+            world.command_wheels(left_mm_s, right_mm_s, until_s=self.sim.world_t(until))
 
     def sample(self, now: float) -> DriveSample:
         with self.sim.world_time() as world:
@@ -99,7 +101,6 @@ class Simulation:
         config: RobotConfig,
         clock: Clock,
         faults: Sequence[Fault] = (),
-        speed: float = 1.0,
         store: SimStore | None = None,
     ) -> None:
         self.world = world
@@ -111,7 +112,8 @@ class Simulation:
         self.truth = TruthLog()
         self.cpu_s = 0.0
         """CPU seconds spent in the world, on whichever thread asked (see :meth:`world_time`)."""
-        self._origin: float | None = None  # the world's t = 0 on the clock: its first step
+        self._origin = clock.now()
+        """The world's t = 0 on the clock: the robot is switched on (its self-check included)."""
         by_id = sorted(config.tof.sensors, key=lambda s: s.id)
         self._index = {s.channel: i for i, s in enumerate(by_id)}
         self.sensor_channel = {s.id: s.channel for s in by_id}
@@ -122,11 +124,19 @@ class Simulation:
             clock=clock.now,
             noise=world.noise,
             seed=world.seed,
-            hold=clock.hold if isinstance(clock, SteppedClock) else None,
         )
-        tick_s = DEVICE_TICK_S / speed
-        self.uwb = SimDwm1001(fix_fn=self._uwb_fix, clock=clock.now, tick_s=tick_s)
-        self.motor = SimMotorController(WorldDrive(self), clock=clock.now, tick_s=tick_s)
+        if isinstance(clock, SteppedClock):
+            self.lockstep = clock.lockstep
+        else:  # the machine's clock (a benchmark of the daemon's own timing): never engaged
+            self.lockstep = Lockstep(clock.now)
+        # Polled once per step (:meth:`advance`), never in threads of their own.
+        self.uwb = SimDwm1001(
+            fix_fn=self._uwb_fix, clock=clock.now, line=MemoryLine("uwb", self.lockstep)
+        )
+        self.motor = SimMotorController(
+            WorldDrive(self), clock=clock.now, line=MemoryLine("motor", self.lockstep)
+        )
+        self._lines = {device.port: device.line for device in (self.uwb, self.motor)}
         self.config = config.model_copy(
             update={
                 "uwb": config.uwb.model_copy(update={"port": self.uwb.port}),
@@ -135,47 +145,77 @@ class Simulation:
         )
         """``config`` with the serial ports pointing at the simulated devices."""
 
+    def open_serial(self, url: str, baudrate: int, timeout_s: float) -> SerialPort:
+        """Opens the simulated devices' ports, as ``open_port`` opens real ones."""
+        line = self._lines.get(url)
+        if not isinstance(line, MemoryLine):
+            raise OSError(f"could not open port {url}: not a simulated device's port")
+        return line.open(url, baudrate, timeout_s)
+
     @property
     def t_s(self) -> float:
         """Simulated seconds since the world module started (the world's own time)."""
         return self.world.t_s
 
-    def start(self) -> None:
-        self.uwb.start()
-        self.motor.start()
-
     def close(self) -> None:
         self.uwb.close()
         self.motor.close()
 
+    async def run(self, step_s: float = 0.005) -> None:
+        """Move simulated time on and step the world, every ``step_s`` of simulated time,
+        for as long as the daemon runs (from before its self-check to after its shutdown).
+
+        On a :class:`SteppedClock` (the simulator's) this is the clock's only advancer. Before
+        each step it waits until the daemon has settled: the event loop has nothing else to
+        run and every worker thread has finished or waits for a later step
+        (:mod:`coffeebot.lockstep`); the results of the threads' calls are handed over in the
+        order the calls were made. So the daemon's reaction to a step takes no simulated time
+        and a run is the same on a busy machine as on an idle one, only slower. The steps are
+        paced to the clock's speed in the machine's time as long as the machine keeps up (a
+        late step is not made up for by a burst). On the machine's clock (a benchmark of the
+        daemon's own timing) the world just steps as time goes.
+        """
+        clock = self.clock
+        if not isinstance(clock, SteppedClock):
+            while True:
+                self.advance()
+                await clock.sleep(step_s)
+        loop = asyncio.get_running_loop()
+        wall_step = step_s / clock.speed
+        self.lockstep.engage(True)
+        try:
+            due = time.monotonic()
+            while True:
+                await settle(loop, self.lockstep)
+                # One step is one event for the worker threads: a read that times out at
+                # this step sees the bytes the step brings, whichever thread wakes first.
+                with self.lockstep.condition:
+                    clock.advance(step_s)
+                    self.advance()
+                if wall_step > 0:
+                    due = max(due + wall_step, time.monotonic() - wall_step)
+                    if due > time.monotonic():
+                        await asyncio.sleep(due - time.monotonic())
+        finally:
+            self.lockstep.engage(False)
+
     def advance(self) -> None:
-        """Step the world to the clock's present, then apply the faults that are due. On a
-        :class:`SteppedClock` the UART devices then take their turn too (after the first
-        step their own threads stop), so they answer in the same simulated time as the
-        world moves."""
+        """Step the world to the clock's present, let the UART devices take their turn and
+        apply the faults that are due."""
         now = self.clock.now()
-        stepped = isinstance(self.clock, SteppedClock)
-        if self._origin is None:
-            self._origin = now  # time spent in the self-check is not part of the run
-            if stepped:
-                self.uwb.stop_serving()
-                self.motor.stop_serving()
         with self.world_time() as world:
             world.step(now - self._origin - world.t_s)
             gap = world.clearance_mm()
             self.truth.min_clearance_mm = min(self.truth.min_clearance_mm, gap)
-        if stepped:
-            self.uwb.poll(now)
-            self.motor.poll(now)
+        self.motor.poll(now)
+        self.uwb.poll(now)
         for fault in self.faults:
             record = fault.update(self)
             if record is not None:
                 self.truth.faults.append(record)
 
-    def world_t(self, clock_t: float, now: float) -> float:
-        """The world's time at clock time ``clock_t`` (``now`` is the clock's present)."""
-        if self._origin is None:  # not stepped yet: the world's t = 0 is about now
-            return self.world.t_s + (clock_t - now)
+    def world_t(self, clock_t: float) -> float:
+        """The world's time at clock time ``clock_t``."""
         return clock_t - self._origin
 
     def place_robot(self, pose: Pose, floor: int | None = None) -> None:
@@ -186,14 +226,9 @@ class Simulation:
     @contextlib.contextmanager
     def world_time(self) -> Iterator[World]:
         """The world under the lock, the calling thread's CPU time in it added to ``cpu_s``
-        (``thread_time`` counts no time spent waiting for the lock). Simulated time stands
-        still meanwhile: what the world costs to compute is not time the robot has
-        (``SteppedClock.hold``)."""
-        hold: contextlib.AbstractContextManager[None] = (
-            self.clock.hold() if isinstance(self.clock, SteppedClock) else contextlib.nullcontext()
-        )
+        (``thread_time`` counts no time spent waiting for the lock)."""
         start = time.thread_time()
-        with self.lock, hold:
+        with self.lock:
             try:
                 yield self.world
             finally:
@@ -226,31 +261,20 @@ class SimElevatorLink:
             return self.sim.world.elevator.state()
 
 
-class WorldModule(Module):
-    """Moves simulated time on and steps the world, every ``step_s`` of simulated time.
-
-    On a :class:`SteppedClock` (the simulator's) it is the clock's only advancer, pacing the
-    steps to the clock's speed in the machine's time as long as the machine keeps up; when
-    it does not, the run goes slower, not differently (a late step is not made up for by a
-    burst). On any other clock (a test's manual clock) it just steps the world as time goes.
-    """
-
-    name = "world"
-
-    def __init__(self, sim: Simulation, step_s: float = 0.005) -> None:
-        self.sim = sim
-        self.step_s = step_s
-
-    async def run(self, ctx: ModuleContext) -> None:
-        clock = ctx.clock
-        if not isinstance(clock, SteppedClock):
-            while True:
-                self.sim.advance()
-                await clock.sleep(self.step_s)
-        wall_step = self.step_s / clock.speed
-        due = time.monotonic()
-        while True:
-            if clock.advance(self.step_s):
-                self.sim.advance()
-            due = max(due + wall_step, time.monotonic() - wall_step)
-            await asyncio.sleep(max(0.0, due - time.monotonic()))
+async def settle(loop: asyncio.AbstractEventLoop, lockstep: Lockstep) -> None:
+    """Return once nothing in the daemon can happen before simulated time moves on: no task
+    or callback is ready to run (``loop._ready``, CPython's run queue, is the only place
+    that says so) and no worker thread is busy; finished calls' results are handed over
+    meanwhile, in the order the calls were made."""
+    ready: Sized | None = getattr(loop, "_ready", None)
+    if ready is None:
+        raise RuntimeError("the simulator steps time on asyncio's own event loop only")
+    while True:
+        await asyncio.sleep(0)
+        if ready:
+            continue
+        results = lockstep.settle()
+        if not results and not ready:
+            return
+        for deliver in results:
+            deliver()

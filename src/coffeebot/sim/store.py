@@ -46,7 +46,7 @@ class SimStore(OrderStore):
     def set_read_only(self, read_only: bool) -> None:
         """Every write fails with SQLite's "attempt to write a readonly database" (queued on
         the store's thread, after whatever it is doing)."""
-        self._executor.submit(self._db.execute, f"PRAGMA query_only={int(read_only)}")
+        self._worker.post(lambda: self._db.execute(f"PRAGMA query_only={int(read_only)}"))
 
     @contextlib.contextmanager
     def _transaction(self) -> Iterator[sqlite3.Connection]:

@@ -1,0 +1,187 @@
+"""Worker threads in step with simulated time, so a simulated run depends on its seed alone.
+
+The simulator's clock (:class:`coffeebot.clock.SteppedClock`) moves only when the simulated
+world steps it. That alone does not make a run repeatable: if the world stepped on while the
+daemon was still reacting to the last step, how far the robot got before it braked would
+depend on how fast the machine computed the reaction. So the world steps only once the
+daemon has *settled*: the event loop has nothing left to run, and every blocking call the
+drivers and the order store made in their worker threads has finished or waits for something
+only a later step can bring (bytes on a serial line, a moment of simulated time).
+:class:`Lockstep` is the ledger of those calls. The daemon's computing then takes no
+simulated time at all, however busy the machine is, and results of finished calls reach the
+event loop in the order the calls were made, not in the order threads happened to finish.
+
+The ledger is *engaged* while the world steps the clock. Before that (the start-up
+self-check) and after (shutdown) time runs freely and results are handed over as they come,
+as on the robot, which has no lockstep at all.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import itertools
+import logging
+import math
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+log = logging.getLogger(__name__)
+
+SLOW_SETTLE_S = 10.0
+"""A worker still busy after this many seconds of the machine's time is logged (a blocking
+call that waits for something no step brings would stop the run)."""
+
+
+@dataclass(eq=False)
+class WorkerSlot:
+    """One worker thread as the ledger sees it."""
+
+    name: str
+    outstanding: int = 0
+    """Calls submitted and not finished (queued or running)."""
+    until: Callable[[], bool] | None = None
+    """While the thread waits in :meth:`Lockstep.block`: what it waits for."""
+    deadline: float = math.inf
+    """...and the simulated time at which it stops waiting anyway."""
+
+
+_current = threading.local()
+
+
+class Lockstep:
+    """Which worker threads are busy, and the results waiting for the event loop.
+
+    ``now`` is the simulated clock; ``free_speed`` converts simulated into the machine's
+    seconds for waits while the ledger is not engaged. One condition guards everything,
+    including the simulated serial lines' buffers (:attr:`condition`), so a thread's "is
+    there anything for me" and the world's "is everyone settled" see the same state.
+    """
+
+    def __init__(self, now: Callable[[], float], free_speed: float = 1.0) -> None:
+        self._now = now
+        self.free_speed = free_speed
+        self.condition = threading.Condition()
+        self._workers: list[WorkerSlot] = []
+        self._finished: list[tuple[int, Callable[[], None]]] = []
+        self._jobs = itertools.count()
+        self.engaged = False
+
+    def now(self) -> float:
+        """The simulated clock's time."""
+        return self._now()
+
+    # --- worker threads -------------------------------------------------------------------
+
+    def worker(self, name: str) -> WorkerSlot:
+        """A new worker thread's slot (``name`` is for log lines)."""
+        slot = WorkerSlot(name)
+        with self.condition:
+            self._workers.append(slot)
+        return slot
+
+    @staticmethod
+    def bind(slot: WorkerSlot) -> None:
+        """Called in the worker's thread: :meth:`block` there is that worker waiting."""
+        _current.slot = slot
+
+    def retire(self, slot: WorkerSlot) -> None:
+        """The worker stops taking calls; whatever it still runs is no longer waited for."""
+        with self.condition:
+            if slot in self._workers:
+                self._workers.remove(slot)
+            self.condition.notify_all()
+
+    def submit(self, slot: WorkerSlot) -> int:
+        """A call is queued on ``slot``'s thread; its number orders the results."""
+        with self.condition:
+            slot.outstanding += 1
+            return next(self._jobs)
+
+    def finish(
+        self,
+        slot: WorkerSlot,
+        job: int,
+        deliver: Callable[[], None],
+        loop: asyncio.AbstractEventLoop,
+    ) -> None:
+        """Called in the worker's thread when call ``job`` is done: ``deliver`` (which sets
+        the awaiting future) runs on ``loop``, by the world when engaged, at once if not."""
+        with self.condition:
+            slot.outstanding -= 1
+            if self.engaged and slot in self._workers:
+                self._finished.append((job, deliver))
+                self.condition.notify_all()
+                return
+        loop.call_soon_threadsafe(deliver)
+
+    def block(self, until: Callable[[], bool], deadline: float) -> None:
+        """Wait in this thread until ``until()`` holds or simulated time reaches
+        ``deadline``. While it waits, a worker counts as settled. Called with or without
+        :attr:`condition` held by nobody; ``until`` is evaluated with it held."""
+        slot: WorkerSlot | None = getattr(_current, "slot", None)
+        with self.condition:
+            if slot is not None:
+                slot.until, slot.deadline = until, deadline
+                self.condition.notify_all()  # the world may be waiting for this worker
+            try:
+                while not until():
+                    now = self._now()
+                    if now >= deadline:
+                        return
+                    if self.engaged:
+                        self.condition.wait()  # woken by every step and every byte
+                    else:
+                        self.condition.wait((deadline - now) / self.free_speed)
+            finally:
+                if slot is not None:
+                    slot.until, slot.deadline = None, math.inf
+
+    def sleep(self, seconds: float) -> None:
+        """A blocking sleep in simulated time, for a driver's polls in its worker thread."""
+        self.block(lambda: False, self._now() + seconds)
+
+    # --- the world ------------------------------------------------------------------------
+
+    def engage(self, engaged: bool) -> None:
+        """From now on (not) in step with the world; results held back are released."""
+        with self.condition:
+            self.engaged = engaged
+            held, self._finished = self._finished, []
+            self.condition.notify_all()
+        for _, deliver in sorted(held, key=lambda job: job[0]):
+            deliver()
+
+    def wake(self) -> None:
+        """Time moved on or bytes arrived: waiting threads look again."""
+        with self.condition:
+            self.condition.notify_all()
+
+    def settle(self) -> list[Callable[[], None]]:
+        """Wait (blocking) until every worker is settled; the results that came in, in the
+        order their calls were made. Call on the event loop's thread, when the loop has
+        nothing else to run."""
+        started = time.monotonic()
+        warned = False
+        with self.condition:
+            while (busy := self._busy()) is not None:
+                self.condition.wait(1.0)
+                if not warned and time.monotonic() - started > SLOW_SETTLE_S:
+                    warned = True
+                    log.warning(
+                        "simulated time waits for worker %s (busy for %.0f s of machine time)",
+                        busy.name,
+                        SLOW_SETTLE_S,
+                    )
+            done, self._finished = self._finished, []
+        return [deliver for _, deliver in sorted(done, key=lambda job: job[0])]
+
+    def _busy(self) -> WorkerSlot | None:
+        now = self._now()
+        for slot in self._workers:
+            if slot.outstanding == 0:
+                continue
+            if slot.until is None or now >= slot.deadline or slot.until():
+                return slot
+        return None
