@@ -11,9 +11,9 @@ only a later step can bring (bytes on a serial line, a moment of simulated time)
 simulated time at all, however busy the machine is, and results of finished calls reach the
 event loop in the order the calls were made, not in the order threads happened to finish.
 
-The ledger is *engaged* while the world steps the clock. Before that (the start-up
-self-check) and after (shutdown) time runs freely and results are handed over as they come,
-as on the robot, which has no lockstep at all.
+The ledger is *engaged* while the world steps the clock. Before that and after (shutdown),
+results are handed over as they come and waits are in the machine's time, as on the robot,
+which has no lockstep at all.
 """
 
 from __future__ import annotations
@@ -21,7 +21,6 @@ from __future__ import annotations
 import asyncio
 import itertools
 import logging
-import math
 import threading
 import time
 from collections.abc import Callable
@@ -35,35 +34,54 @@ call that waits for something no step brings would stop the run)."""
 
 
 @dataclass(eq=False)
+class Waiter:
+    """A thread inside :meth:`Lockstep.block`: what it waits for, and until when."""
+
+    until: Callable[[], bool]
+    deadline: float
+    wakeup: threading.Condition
+
+    def due(self, now: float) -> bool:
+        return now >= self.deadline or self.until()
+
+
+@dataclass(eq=False)
 class WorkerSlot:
     """One worker thread as the ledger sees it."""
 
     name: str
     outstanding: int = 0
     """Calls submitted and not finished (queued or running)."""
-    until: Callable[[], bool] | None = None
-    """While the thread waits in :meth:`Lockstep.block`: what it waits for."""
-    deadline: float = math.inf
-    """...and the simulated time at which it stops waiting anyway."""
+    waiter: Waiter | None = None
+    """Set while the thread waits in :meth:`Lockstep.block`."""
 
 
-_current = threading.local()
+class _ThreadState(threading.local):
+    def __init__(self) -> None:
+        self.slot: WorkerSlot | None = None
+
+
+_current = _ThreadState()
 
 
 class Lockstep:
     """Which worker threads are busy, and the results waiting for the event loop.
 
     ``now`` is the simulated clock; ``free_speed`` converts simulated into the machine's
-    seconds for waits while the ledger is not engaged. One condition guards everything,
-    including the simulated serial lines' buffers (:attr:`condition`), so a thread's "is
-    there anything for me" and the world's "is everyone settled" see the same state.
+    seconds for waits while the ledger is not engaged. One lock (:attr:`lock`) guards the
+    ledger and the simulated serial lines' buffers, so a thread's "is there anything for me"
+    and the world's "is everyone settled" see the same state. Each waiting thread has a
+    condition of its own on that lock and is woken only when what it waits for may have
+    come (:meth:`wake`), not at every step.
     """
 
     def __init__(self, now: Callable[[], float], free_speed: float = 1.0) -> None:
         self._now = now
         self.free_speed = free_speed
-        self.condition = threading.Condition()
+        self.lock = threading.RLock()
+        self._settled = threading.Condition(self.lock)
         self._workers: list[WorkerSlot] = []
+        self._waiters: list[Waiter] = []
         self._finished: list[tuple[int, Callable[[], None]]] = []
         self._jobs = itertools.count()
         self.engaged = False
@@ -77,7 +95,7 @@ class Lockstep:
     def worker(self, name: str) -> WorkerSlot:
         """A new worker thread's slot (``name`` is for log lines)."""
         slot = WorkerSlot(name)
-        with self.condition:
+        with self.lock:
             self._workers.append(slot)
         return slot
 
@@ -88,14 +106,14 @@ class Lockstep:
 
     def retire(self, slot: WorkerSlot) -> None:
         """The worker stops taking calls; whatever it still runs is no longer waited for."""
-        with self.condition:
+        with self.lock:
             if slot in self._workers:
                 self._workers.remove(slot)
-            self.condition.notify_all()
+            self._settled.notify()
 
     def submit(self, slot: WorkerSlot) -> int:
         """A call is queued on ``slot``'s thread; its number orders the results."""
-        with self.condition:
+        with self.lock:
             slot.outstanding += 1
             return next(self._jobs)
 
@@ -108,55 +126,62 @@ class Lockstep:
     ) -> None:
         """Called in the worker's thread when call ``job`` is done: ``deliver`` (which sets
         the awaiting future) runs on ``loop``, by the world when engaged, at once if not."""
-        with self.condition:
+        with self.lock:
             slot.outstanding -= 1
             if self.engaged and slot in self._workers:
                 self._finished.append((job, deliver))
-                self.condition.notify_all()
+                self._settled.notify()
                 return
         loop.call_soon_threadsafe(deliver)
 
     def block(self, until: Callable[[], bool], deadline: float) -> None:
         """Wait in this thread until ``until()`` holds or simulated time reaches
-        ``deadline``. While it waits, a worker counts as settled. Called with or without
-        :attr:`condition` held by nobody; ``until`` is evaluated with it held."""
-        slot: WorkerSlot | None = getattr(_current, "slot", None)
-        with self.condition:
+        ``deadline``; ``until`` is evaluated with :attr:`lock` held, and whoever makes it
+        true calls :meth:`wake`. While a worker waits here it counts as settled."""
+        waiter = Waiter(until, deadline, threading.Condition(self.lock))
+        slot = _current.slot
+        with self.lock:
+            self._waiters.append(waiter)
             if slot is not None:
-                slot.until, slot.deadline = until, deadline
-                self.condition.notify_all()  # the world may be waiting for this worker
+                slot.waiter = waiter
+                self._settled.notify()  # the world may be waiting for this worker
             try:
                 while not until():
                     now = self._now()
                     if now >= deadline:
                         return
                     if self.engaged:
-                        self.condition.wait()  # woken by every step and every byte
+                        waiter.wakeup.wait()
                     else:
-                        self.condition.wait((deadline - now) / self.free_speed)
+                        waiter.wakeup.wait((deadline - now) / self.free_speed)
             finally:
+                self._waiters.remove(waiter)
                 if slot is not None:
-                    slot.until, slot.deadline = None, math.inf
+                    slot.waiter = None
 
     def sleep(self, seconds: float) -> None:
         """A blocking sleep in simulated time, for a driver's polls in its worker thread."""
         self.block(lambda: False, self._now() + seconds)
 
+    def wake(self) -> None:
+        """Time moved on or bytes arrived: wake the threads whose wait is over."""
+        with self.lock:
+            now = self._now()
+            for waiter in self._waiters:
+                if waiter.due(now):
+                    waiter.wakeup.notify()
+
     # --- the world ------------------------------------------------------------------------
 
     def engage(self, engaged: bool) -> None:
         """From now on (not) in step with the world; results held back are released."""
-        with self.condition:
+        with self.lock:
             self.engaged = engaged
             held, self._finished = self._finished, []
-            self.condition.notify_all()
+            for waiter in self._waiters:
+                waiter.wakeup.notify()
         for _, deliver in sorted(held, key=lambda job: job[0]):
             deliver()
-
-    def wake(self) -> None:
-        """Time moved on or bytes arrived: waiting threads look again."""
-        with self.condition:
-            self.condition.notify_all()
 
     def settle(self) -> list[Callable[[], None]]:
         """Wait (blocking) until every worker is settled; the results that came in, in the
@@ -164,9 +189,9 @@ class Lockstep:
         nothing else to run."""
         started = time.monotonic()
         warned = False
-        with self.condition:
+        with self.lock:
             while (busy := self._busy()) is not None:
-                self.condition.wait(1.0)
+                self._settled.wait(1.0)
                 if not warned and time.monotonic() - started > SLOW_SETTLE_S:
                     warned = True
                     log.warning(
@@ -182,6 +207,6 @@ class Lockstep:
         for slot in self._workers:
             if slot.outstanding == 0:
                 continue
-            if slot.until is None or now >= slot.deadline or slot.until():
+            if slot.waiter is None or slot.waiter.due(now):
                 return slot
         return None

@@ -25,12 +25,12 @@ BUFFER_BYTES = 4096
 
 class MemoryLine:
     """The device's end (see :class:`coffeebot.sim.uart.Line`); every buffer is guarded by
-    the lockstep's condition, which also wakes a driver waiting for bytes."""
+    the lockstep's lock, and every change wakes whoever waits for it (:meth:`Lockstep.wake`)."""
 
     def __init__(self, name: str, lockstep: Lockstep) -> None:
         self.port = f"sim://{name}"
         self.lockstep = lockstep
-        self._cond = lockstep.condition
+        self._lock = lockstep.lock
         self._to_driver = bytearray()
         self._to_device = bytearray()
         self._plugged = False
@@ -42,31 +42,32 @@ class MemoryLine:
         return self._plugged
 
     def plug(self) -> None:
-        with self._cond:
+        with self._lock:
             self.generation += 1
             self._plugged = True
             self._to_driver.clear()
             self._to_device.clear()
-            self._cond.notify_all()
+            self.lockstep.wake()
 
     def unplug(self) -> None:
-        with self._cond:
+        with self._lock:
             self._plugged = False
             self._to_driver.clear()
             self._to_device.clear()
-            self._cond.notify_all()
+            self.lockstep.wake()
 
     def send(self, data: bytes) -> None:
-        with self._cond:
+        with self._lock:
             if self._plugged:
                 room = BUFFER_BYTES - len(self._to_driver)
                 self._to_driver += data[: max(0, room)]
-                self._cond.notify_all()
+                self.lockstep.wake()
 
     def receive(self, wait_s: float) -> bytes:
-        with self._cond:
-            if wait_s > 0 and not self._to_device:
-                self._cond.wait(wait_s)
+        """What the driver wrote; waits up to ``wait_s`` simulated seconds for it."""
+        if wait_s > 0:
+            self.lockstep.block(lambda: bool(self._to_device), self.lockstep.now() + wait_s)
+        with self._lock:
             data = bytes(self._to_device)
             self._to_device.clear()
             return data
@@ -77,14 +78,14 @@ class MemoryLine:
     def open(self, url: str, baudrate: int, timeout_s: float) -> MemoryPort:
         """The driver's end, as ``open_port(url, baudrate, timeout_s)`` would give it."""
         del baudrate  # bytes move whole; a UART's pace is not modelled
-        with self._cond:
+        with self._lock:
             if url != self.port or not self._plugged:
                 why = os.strerror(errno.ENOENT)
                 raise OSError(errno.ENOENT, f"could not open port {url}: {why}")
             self._to_driver.clear()  # pyserial flushes the input when it opens a port
             return MemoryPort(self, self.generation, timeout_s)
 
-    # --- for MemoryPort (with the condition held) ---------------------------------------
+    # --- for MemoryPort (with the lock held) --------------------------------------------
 
     def _alive(self, generation: int) -> bool:
         return self._plugged and generation == self.generation
@@ -101,7 +102,7 @@ class MemoryPort:
 
     @property
     def in_waiting(self) -> int:
-        with self._line.lockstep.condition:
+        with self._line.lockstep.lock:
             self._check()
             return len(self._line._to_driver)
 
@@ -112,7 +113,7 @@ class MemoryPort:
         lockstep = line.lockstep
         deadline = lockstep.now() + self.timeout_s
         lockstep.block(lambda: not self._usable() or len(line._to_driver) >= size, deadline)
-        with lockstep.condition:
+        with lockstep.lock:
             self._check()
             data = bytes(line._to_driver[:size])
             del line._to_driver[:size]
@@ -120,14 +121,14 @@ class MemoryPort:
 
     def write(self, data: bytes, /) -> int:
         line = self._line
-        with line.lockstep.condition:
+        with line.lockstep.lock:
             self._check()
             line._to_device += data
-            line.lockstep.condition.notify_all()
+        line.lockstep.wake()
         return len(data)
 
     def reset_input_buffer(self) -> None:
-        with self._line.lockstep.condition:
+        with self._line.lockstep.lock:
             self._check()
             self._line._to_driver.clear()
 

@@ -189,7 +189,7 @@ class Simulation:
                 await settle(loop, self.lockstep)
                 # One step is one event for the worker threads: a read that times out at
                 # this step sees the bytes the step brings, whichever thread wakes first.
-                with self.lockstep.condition:
+                with self.lockstep.lock:
                     clock.advance(step_s)
                     self.advance()
                 if wall_step > 0:
