@@ -231,7 +231,10 @@ class World:
     ) -> dict[str, tuple[float, float]]:
         """Elements touching the footprint at a pose (grown by ``inflate_mm`` on each side)."""
         surfaces = self.surfaces()
-        near = surfaces.take(*surfaces.near(x, y, self._contact_radius + inflate_mm))
+        segments, cylinders = surfaces.near(x, y, self._contact_radius + inflate_mm)
+        if not len(segments) and not len(cylinders):
+            return {}  # the usual case, every physics step: nothing within reach
+        near = surfaces.take(segments, cylinders)
         spec = self.robot
         found = footprint_contacts(
             near,
@@ -256,42 +259,34 @@ class World:
 
     def clearance_mm(self, surfaces: Surfaces | None = None, radius_mm: float = 2000.0) -> float:
         """Gap between the body's rectangle and the nearest surface within the body's height
-        (``surfaces``: default everything on the floor within ``radius_mm``); 0 while touching,
-        ``inf`` when nothing is that close."""
+        (``surfaces``: default everything on the floor); 0 while touching, ``inf`` when
+        nothing is within ``radius_mm``. Called every physics step: few, whole-array numpy
+        operations."""
         if self._touching and surfaces is None:
             return 0.0
         s, spec = self.body.state, self.robot
         if surfaces is None:
-            everything = self.surfaces()
-            surfaces = everything.take(*everything.near(s.x, s.y, radius_mm))
+            surfaces = self.surfaces()
         lo, hi = spec.ground_clearance_mm, spec.height_mm
-        seg = surfaces.segments[(surfaces.segments[:, 5] >= lo) & (surfaces.segments[:, 4] <= hi)]
-        cyl = surfaces.cylinders[
-            (surfaces.cylinders[:, 4] >= lo) & (surfaces.cylinders[:, 3] <= hi)
-        ]
+        seg = surfaces.segments
+        seg = seg[(seg[:, 5] >= lo) & (seg[:, 4] <= hi)]
+        cyl = surfaces.cylinders
+        cyl = cyl[(cyl[:, 4] >= lo) & (cyl[:, 3] <= hi)]
         c, sn = math.cos(s.theta), math.sin(s.theta)
+        rotation = np.array([[c, -sn], [sn, c]])  # row vectors times this: the body's frame
         half = np.array([spec.length_mm / 2, spec.width_mm / 2])
-
-        def body_frame(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-            dx, dy = x - s.x, y - s.y
-            return np.stack([dx * c + dy * sn, -dx * sn + dy * c], axis=-1)
-
-        def outside(points: np.ndarray) -> np.ndarray:
-            return np.hypot(*np.maximum(np.abs(points) - half, 0.0).T)
-
-        gaps = [np.array([math.inf])]
+        best = math.inf
         if len(seg):
-            a, b = body_frame(seg[:, 0], seg[:, 1]), body_frame(seg[:, 2], seg[:, 3])
-            local = np.hstack([a, b])
-            gaps += [outside(a), outside(b)]
-            gaps += [
-                segment_distances(local, sx * half[0], sy * half[1])
-                for sx in (1, -1)
-                for sy in (1, -1)
-            ]
+            ends = (seg[:, :4].reshape(-1, 2) - (s.x, s.y)) @ rotation
+            best = float(np.hypot(*np.maximum(np.abs(ends) - half, 0.0).T).min())
+            corners = np.array([[1.0, 1.0], [1.0, -1.0], [-1.0, 1.0], [-1.0, -1.0]]) * half
+            to_corners = segment_distances(ends.reshape(-1, 4), corners[:, :1], corners[:, 1:])
+            best = min(best, float(to_corners.min()))
         if len(cyl):
-            gaps.append(np.maximum(outside(body_frame(cyl[:, 0], cyl[:, 1])) - cyl[:, 2], 0.0))
-        return float(np.concatenate(gaps).min())
+            centres = (cyl[:, :2] - (s.x, s.y)) @ rotation
+            rims = np.hypot(*np.maximum(np.abs(centres) - half, 0.0).T) - cyl[:, 2]
+            best = min(best, max(float(rims.min()), 0.0))
+        return best if best <= radius_mm else math.inf
 
     # --- motor controller ------------------------------------------------------------------
 
