@@ -28,7 +28,7 @@ class Pace:
     """How long the robot waits at the door (the customer's countdown)."""
 
 
-def _length(points: Sequence[tuple[float, float]]) -> float:
+def polyline_length_mm(points: Sequence[tuple[float, float]]) -> float:
     return sum(math.dist(a, b) for a, b in itertools.pairwise(points))
 
 
@@ -57,6 +57,6 @@ def arrival_in_s(route: PlannedRoute, pose: PoseEstimate, pace: Pace) -> float |
             continue
         later = route.legs[i + 1 :]
         left_mm = remaining_on(leg.points, pose.x_mm, pose.y_mm)
-        left_mm += sum(_length(other.points) for other in later)
+        left_mm += sum(polyline_length_mm(other.points) for other in later)
         return left_mm / pace.travel_mm_s + len(later) * pace.elevator_ride_s
     return None
