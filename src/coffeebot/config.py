@@ -893,6 +893,68 @@ class WatchdogConfig(Section):
     max_loop_lag_s: float = Field(1.0, gt=0, le=60, description="event loop this late: stalled")
 
 
+class DispatchConfig(Section):
+    """The fleet's dispatcher (``coffeebot fleet``): when it gives up on a robot, how long
+    a shared place is lent, how it estimates and assigns (docs/fleet.md)."""
+
+    stale_after_s: float = Field(
+        5.0, gt=0, le=600, description="a robot not heard of this long is stale (grey on the map)"
+    )
+    lost_after_s: float = Field(
+        30.0,
+        gt=0,
+        le=WAIT_S,
+        description="stale this long while carrying an order out: the order fails with the reason",
+    )
+    ack_timeout_s: float = Field(
+        3.0, gt=0, le=600, description="an assignment not acknowledged this long is sent again"
+    )
+    lease_s: float = Field(
+        30.0, gt=0, le=3600, description="how long a grant of a shared place lasts unless renewed"
+    )
+    loading_s: float = Field(
+        30.0, ge=0, le=WAIT_S, description="estimate: staff loading the cup at the tea room"
+    )
+    strategy: Literal["joint", "greedy"] = Field(
+        "joint", description="several orders and robots at once: jointly, or first come"
+    )
+
+
+class FleetConfig(Section):
+    """One robot of a fleet: the MQTT broker it reports to and takes its orders from
+    (docs/fleet.md). Without a broker the robot keeps its own orders, as a single robot
+    does. The broker's user name is the robot id; the password comes from the environment
+    (``COFFEEBOT_MQTT_PASSWORD``), never from this file."""
+
+    broker: str = Field(
+        "",
+        pattern=r"^(mqtt://[A-Za-z0-9.\-]+(:[0-9]{1,5})?)?$",
+        description="mqtt://host[:port]; empty: a single robot, no fleet",
+    )
+    robot_id: str = Field(
+        "",
+        pattern=r"^([a-z0-9][a-z0-9-]{0,31})?$",
+        description="its name on the broker (empty: the board's name)",
+    )
+    state_hz: float = Field(2.0, gt=0, le=20, description="state reports per second")
+    lease_renew_s: float = Field(
+        5.0, gt=0, le=600, description="a held place is asked for again this often"
+    )
+    lease_wait_s: float = Field(
+        120.0,
+        gt=0,
+        le=WAIT_S,
+        description="without the broker for this long, the robot goes into a shared place on "
+        "its own sensors' word (a robot that lost the broker finishes what it carries)",
+    )
+    reconnect_max_s: float = Field(10.0, gt=0, le=600, description="longest wait between tries")
+    dispatch: DispatchConfig = DispatchConfig()
+
+    @property
+    def enabled(self) -> bool:
+        return bool(self.broker)
+
+
 class SupervisionConfig(Section):
     restart_backoff_s: float = Field(0.5, gt=0, le=60)
     restart_backoff_max_s: float = Field(10.0, gt=0, le=3600)
@@ -925,6 +987,12 @@ class RobotConfig(Section):
     logging: LoggingConfig = LoggingConfig()
     supervision: SupervisionConfig = SupervisionConfig()
     watchdog: WatchdogConfig = WatchdogConfig()
+    fleet: FleetConfig = FleetConfig()
+
+    @property
+    def robot_id(self) -> str:
+        """The robot's name in a fleet: ``[fleet] robot_id``, else the board's name."""
+        return self.fleet.robot_id or self.name
 
     def sensor(self, sensor_id: int) -> TofSensorConfig:
         return next(s for s in self.tof.sensors if s.id == sensor_id)

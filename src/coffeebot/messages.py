@@ -242,12 +242,15 @@ class DeliveryUpdate(Message):
     """Set on a failure, and while the delivery is held (blocked, an unanswered elevator)."""
 
 
+OperatorKind = Literal["cup_loaded", "pickup_confirmed", "cancel", "elevator_confirm"]
+
+
 class OperatorEvent(Message):
     """A person acted: staff loaded the cup, the customer took it, an operator cancelled, or an
     operator confirmed the elevator step the robot waits for (the fallback when the elevator
     interface does not answer)."""
 
-    kind: Literal["cup_loaded", "pickup_confirmed", "cancel", "elevator_confirm"]
+    kind: OperatorKind
     order_id: str
     source: str = "web"
 
@@ -472,6 +475,59 @@ class OrderUpdate(Message):
     problem: DeliveryProblem | None = None
 
 
+# --- fleet ------------------------------------------------------------------------------
+
+SharedPlace = Literal["elevator", "loading_spot"]
+
+
+class LeaseNeed(Message):
+    """Navigation needs a shared place to itself before it goes in (``want``), or is out of
+    it again. Only in a fleet (``[fleet] broker``): a single robot has the places alone."""
+
+    place: SharedPlace
+    want: bool
+
+
+class LeaseState(Message):
+    """Which shared places this robot may go into now: the fleet bridge's word, from the
+    dispatcher's grants (or its own, after ``[fleet] lease_wait_s`` without the broker)."""
+
+    elevator: bool = False
+    loading_spot: bool = False
+    detail: str = ""
+
+    def holds(self, place: SharedPlace) -> bool:
+        return self.elevator if place == "elevator" else self.loading_spot
+
+
+class FleetRobot(Message):
+    """One robot as the dispatcher knows it, for the fleet's map and operators."""
+
+    robot: str
+    online: bool
+    stale: bool
+    """Not heard of lately: drawn grey, with ``heard_ago_s``."""
+    heard_ago_s: float | None = None
+    floor: int | None = None
+    x_mm: float | None = None
+    y_mm: float | None = None
+    heading_deg: float | None = None
+    motion: MotionState | None = None
+    safety: SafetyState | None = None
+    health: HealthStatus | None = None
+    unwell: list[str] = []
+    order_id: str | None = None
+    estop: bool = False
+
+
+class FleetView(Message):
+    """The dispatcher's view of its robots (published on its own board)."""
+
+    robots: list[FleetRobot] = []
+    broker: bool = False
+    """Whether the dispatcher is connected to the broker."""
+
+
 HEALTH = Topic("system/health", Health, Delivery.RELIABLE, queue_size=1024)
 RANGE_SCAN = Topic("tof/scan", RangeScan, Delivery.LATEST)
 UWB_FIX = Topic("uwb/fix", UwbFix, Delivery.LATEST)
@@ -492,6 +548,9 @@ MOTION_STATUS = Topic("motion/status", MotionStatus, Delivery.LATEST)
 ROUTE = Topic("nav/route", PlannedRoute, Delivery.LATEST)
 ELEVATOR_REQUEST = Topic("elevator/request", ElevatorRequest, Delivery.RELIABLE)
 ELEVATOR_STATE = Topic("elevator/state", ElevatorState, Delivery.LATEST)
+LEASE_NEED = Topic("fleet/lease_need", LeaseNeed, Delivery.RELIABLE)
+LEASE_STATE = Topic("fleet/leases", LeaseState, Delivery.LATEST)
+FLEET = Topic("fleet/robots", FleetView, Delivery.LATEST)
 
 ALL_TOPICS: tuple[Topic[Any], ...] = (
     HEALTH,
@@ -514,4 +573,7 @@ ALL_TOPICS: tuple[Topic[Any], ...] = (
     ROUTE,
     ELEVATOR_REQUEST,
     ELEVATOR_STATE,
+    LEASE_NEED,
+    LEASE_STATE,
+    FLEET,
 )

@@ -44,8 +44,8 @@ T = TypeVar("T")
 ACTIVE = tuple(s for s in OrderStatus if not s.final)
 IN_FLIGHT = tuple(s for s in ACTIVE if s is not OrderStatus.QUEUED)
 
-SCHEMA_VERSION = 2
-"""1: the first table; 2: each order's key hash."""
+SCHEMA_VERSION = 3
+"""1: the first table; 2: each order's key hash; 3: the robot an order went to (a fleet)."""
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS orders (
@@ -60,12 +60,20 @@ CREATE TABLE IF NOT EXISTS orders (
     detail     TEXT NOT NULL,
     created_at REAL NOT NULL,
     updated_at REAL NOT NULL,
-    key_hash   TEXT NOT NULL DEFAULT ''
+    key_hash   TEXT NOT NULL DEFAULT '',
+    robot      TEXT
 );
 CREATE INDEX IF NOT EXISTS orders_status ON orders (status, seq);
 """
 
-_COLUMNS = "seq, id, room, drink, name, notes, status, detail, created_at, updated_at"
+_COLUMNS = "seq, id, room, drink, name, notes, status, detail, created_at, updated_at, robot"
+
+
+class Keep:
+    """"Leave it as it is" for an optional column (``None`` there means "no robot")."""
+
+
+KEEP = Keep()
 
 
 @dataclass(frozen=True)
@@ -117,6 +125,8 @@ class Order(BaseModel):
     detail: str
     created_at: float
     updated_at: float
+    robot: str | None = None
+    """The robot it went to, in a fleet (None: not out yet, or a single robot's)."""
     ahead: int | None = Field(
         None, description="active orders before this one (None once it has ended)"
     )
@@ -226,6 +236,8 @@ class OrderStore:
         columns = {row[1] for row in db.execute("PRAGMA table_info(orders)")}
         if exists and "key_hash" not in columns:
             db.execute("ALTER TABLE orders ADD COLUMN key_hash TEXT NOT NULL DEFAULT ''")
+        if exists and "robot" not in columns:
+            db.execute("ALTER TABLE orders ADD COLUMN robot TEXT")
         db.executescript(_SCHEMA)
         db.execute(f"PRAGMA user_version={SCHEMA_VERSION}")
 
@@ -259,6 +271,10 @@ class OrderStore:
         self._closed = True
         self._worker.run_now(self._db.close)
         self._worker.join()
+
+    def now(self) -> float:
+        """The clock orders are stamped with (``created_at``, ``updated_at``)."""
+        return self._now()
 
     async def journal_mode(self) -> str:
         return await self._call(lambda: self._db.execute("PRAGMA journal_mode").fetchone()[0])
@@ -339,18 +355,22 @@ class OrderStore:
         status: OrderStatus,
         detail: str,
         allowed_from: Collection[OrderStatus],
+        robot: str | Keep | None = KEEP,
     ) -> Order | None:
-        """Set ``status`` if the order is currently in ``allowed_from``; None if it was not."""
+        """Set ``status`` (and the ``robot`` it is with, if given) if the order is currently
+        in ``allowed_from``; None if it was not."""
         sources = tuple(allowed_from)
         if not sources:
             return None
+        assign = "" if isinstance(robot, Keep) else ", robot = ?"
+        values = () if isinstance(robot, Keep) else (robot,)
 
         def update() -> Order | None:
             with self._transaction() as db:
                 cursor = db.execute(
-                    f"UPDATE orders SET status = ?, detail = ?, updated_at = ?"
+                    f"UPDATE orders SET status = ?, detail = ?, updated_at = ?{assign}"
                     f" WHERE id = ? AND status IN ({_marks(sources)})",
-                    (status.value, detail, self._now(), order_id, *sources),
+                    (status.value, detail, self._now(), *values, order_id, *sources),
                 )
                 return self._select(order_id) if cursor.rowcount else None
 

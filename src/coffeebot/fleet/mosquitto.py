@@ -125,8 +125,9 @@ class Mosquitto:
         while time.monotonic() < deadline:
             if self._process.poll() is not None:
                 raise BrokerError(f"mosquitto exited at start: {self._log.read_text()[-500:]}")
-            with contextlib.suppress(OSError), socket.create_connection(
-                (self.address.host, self.address.port), timeout=0.2
+            with (
+                contextlib.suppress(OSError),
+                socket.create_connection((self.address.host, self.address.port), timeout=0.2),
             ):
                 return
             time.sleep(0.05)

@@ -1,0 +1,218 @@
+"""The dispatcher's bookkeeping, fed robots' messages directly (the broker's part is tested
+with the real broker in test_fleet_broker.py): assignment on acknowledgement, refusals,
+cancel before acknowledgement, stale robots, lost orders, reports applied once."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import AsyncIterator
+from pathlib import Path
+
+import pytest
+
+from coffeebot.config import DispatchConfig, load_robot_config
+from coffeebot.fleet.dispatcher import Dispatcher
+from coffeebot.fleet.estimates import TravelTimes
+from coffeebot.fleet.protocol import (
+    Ack,
+    Assignment,
+    Connection,
+    ConnectionState,
+    DeliveryReport,
+    FleetMessage,
+    InstantAction,
+    LeaseGrant,
+    LeaseRequest,
+    RobotState,
+)
+from coffeebot.floorplan import load_floorplan
+from coffeebot.messages import OrderStatus
+from coffeebot.store import NewOrder, Order, OrderRules, OrderStore
+from coffeebot.web.eta import Pace
+
+ROOT = Path(__file__).resolve().parents[2]
+PLAN = load_floorplan(ROOT / "floorplans" / "cs-building.toml")
+CONFIG = load_robot_config(ROOT / "boards" / "coffeebot-v1.toml")
+RULES = OrderRules(rooms=set(PLAN.rooms), drinks=set(CONFIG.web.drinks))
+BASE = (41500.0, -700.0)
+"""In the tea room, where free robots stand."""
+
+
+class Clock:
+    def __init__(self) -> None:
+        self.t = 1000.0
+
+    def __call__(self) -> float:
+        return self.t
+
+
+class Harness:
+    def __init__(self, store: OrderStore) -> None:
+        self.clock = Clock()
+        self.sent: list[tuple[str, FleetMessage]] = []
+        self.announced: list[tuple[str, OrderStatus]] = []
+        self.dispatcher = Dispatcher(
+            store,
+            TravelTimes(PLAN, CONFIG, Pace()),
+            DispatchConfig(),
+            lambda robot, message: self.sent.append((robot, message)),
+            lambda order, cause: self.announced.append((order.id, order.status)),
+            self.clock,
+        )
+        self.dispatcher.link_up_since_s = 0.0
+        self.seq = 0
+
+    async def robot_reports(self, robot: str, order_id: str | None = None) -> None:
+        self.seq += 1
+        await self.dispatcher.on_connection(
+            robot, Connection(state=ConnectionState.ONLINE, at_s=time.time())
+        )
+        await self.dispatcher.on_state(
+            robot,
+            RobotState(
+                seq=self.seq,
+                at_s=time.time(),
+                floor=2,
+                x_mm=BASE[0],
+                y_mm=BASE[1],
+                heading_deg=0.0,
+                order_id=order_id,
+            ),
+        )
+
+    async def order(self, room: str = "205") -> Order:
+        new = NewOrder.model_validate(
+            {"room": room, "drink": CONFIG.web.drinks[0], "name": "Ada"}, context=RULES
+        )
+        return await self.dispatcher.place(new, "test")
+
+    def assignments(self, robot: str | None = None) -> list[Assignment]:
+        return [
+            m for r, m in self.sent if isinstance(m, Assignment) and (robot is None or r == robot)
+        ]
+
+    def actions(self, robot: str) -> list[InstantAction]:
+        return [m for r, m in self.sent if isinstance(m, InstantAction) and r == robot]
+
+
+@pytest.fixture
+async def harness(tmp_path: Path) -> AsyncIterator[Harness]:
+    store = OrderStore(tmp_path / "orders.sqlite3")
+    yield Harness(store)
+    store.close()
+
+
+async def test_a_waiting_order_goes_to_a_free_robot_and_counts_once_acknowledged(
+    harness: Harness,
+) -> None:
+    await harness.robot_reports("r1")
+    placed = await harness.order()
+    await harness.dispatcher.tick()
+    (sent,) = harness.assignments("r1")
+    assert sent.order_id == placed.id
+    order = await harness.dispatcher.get(placed.id)
+    assert order.status is OrderStatus.PREPARING and order.robot == "r1"
+    harness.clock.t += 5.0  # no acknowledgement yet: sent again
+    await harness.dispatcher.tick()
+    assert len(harness.assignments("r1")) == 2
+    await harness.dispatcher.on_ack("r1", Ack(ref=sent.assignment_id, accepted=True))
+    harness.clock.t += 5.0
+    await harness.robot_reports("r1", placed.id)
+    await harness.dispatcher.tick()
+    assert len(harness.assignments("r1")) == 2, "acknowledged: not sent again"
+
+
+async def test_a_refused_assignment_goes_back_to_the_queue_and_to_another_robot(
+    harness: Harness,
+) -> None:
+    await harness.robot_reports("r1")
+    placed = await harness.order()
+    await harness.dispatcher.tick()
+    (sent,) = harness.assignments("r1")
+    refusal = Ack(ref=sent.assignment_id, accepted=False, reason="busy")
+    await harness.dispatcher.on_ack("r1", refusal)
+    assert (await harness.dispatcher.get(placed.id)).status is OrderStatus.QUEUED
+    await harness.robot_reports("r2")
+    await harness.dispatcher.tick()
+    assert [a.order_id for a in harness.assignments()] == [placed.id, placed.id]
+
+
+async def test_cancel_works_before_the_robot_has_acknowledged(harness: Harness) -> None:
+    await harness.robot_reports("r1")
+    placed = await harness.order()
+    await harness.dispatcher.tick()
+    cancelled = await harness.dispatcher.cancel(placed.id)
+    assert cancelled.status is OrderStatus.CANCELLED
+    assert [a.kind for a in harness.actions("r1")] == ["cancel"]
+    harness.clock.t += 10.0
+    await harness.dispatcher.tick()
+    assert len(harness.assignments("r1")) == 1, "a cancelled order is not sent again"
+
+
+async def test_a_silent_robot_turns_stale_its_unstarted_order_is_requeued(
+    harness: Harness,
+) -> None:
+    await harness.robot_reports("r1")
+    placed = await harness.order()
+    await harness.dispatcher.tick()
+    (sent,) = harness.assignments("r1")
+    await harness.dispatcher.on_ack("r1", Ack(ref=sent.assignment_id, accepted=True))
+    harness.clock.t += 6.0
+    await harness.dispatcher.tick()
+    (view,) = harness.dispatcher.view()
+    assert view.stale and view.heard_ago_s is not None and view.heard_ago_s >= 6.0
+    assert (await harness.dispatcher.get(placed.id)).status is OrderStatus.QUEUED
+
+
+async def test_a_robot_that_dies_carrying_an_order_fails_it_with_the_reason(
+    harness: Harness,
+) -> None:
+    await harness.robot_reports("r1")
+    placed = await harness.order()
+    await harness.dispatcher.tick()
+    (sent,) = harness.assignments("r1")
+    await harness.dispatcher.on_ack("r1", Ack(ref=sent.assignment_id, accepted=True))
+    report = DeliveryReport(seq=0, order_id=placed.id, status=OrderStatus.ON_THE_WAY)
+    await harness.dispatcher.on_delivery("r1", report)
+    await harness.dispatcher.on_connection(
+        "r1", Connection(state=ConnectionState.CONNECTION_BROKEN, at_s=time.time())
+    )
+    await harness.dispatcher.tick()
+    assert (await harness.dispatcher.get(placed.id)).status is OrderStatus.ON_THE_WAY
+    harness.clock.t += DispatchConfig().lost_after_s
+    await harness.dispatcher.tick()
+    order = await harness.dispatcher.get(placed.id)
+    assert order.status is OrderStatus.FAILED and "r1 stopped reporting" in order.detail
+
+
+async def test_reports_apply_once_and_only_from_the_robot_that_has_the_order(
+    harness: Harness,
+) -> None:
+    await harness.robot_reports("r1")
+    await harness.robot_reports("r2")
+    placed = await harness.order()
+    await harness.dispatcher.tick()
+    (sent,) = harness.assignments()
+    holder = "r1" if harness.assignments("r1") else "r2"
+    other = "r2" if holder == "r1" else "r1"
+    await harness.dispatcher.on_ack(holder, Ack(ref=sent.assignment_id, accepted=True))
+    on_the_way = DeliveryReport(seq=3, order_id=placed.id, status=OrderStatus.ON_THE_WAY)
+    arrived = DeliveryReport(seq=4, order_id=placed.id, status=OrderStatus.ARRIVED)
+    await harness.dispatcher.on_delivery(holder, on_the_way)
+    await harness.dispatcher.on_delivery(holder, arrived)
+    await harness.dispatcher.on_delivery(holder, on_the_way)  # a repeat after a reconnect
+    assert (await harness.dispatcher.get(placed.id)).status is OrderStatus.ARRIVED
+    foreign = DeliveryReport(seq=0, order_id=placed.id, status=OrderStatus.DELIVERED)
+    await harness.dispatcher.on_delivery(other, foreign)
+    assert (await harness.dispatcher.get(placed.id)).status is OrderStatus.ARRIVED
+    assert [a.kind for a in harness.actions(other)] == ["cancel"]
+
+
+async def test_a_place_freed_goes_to_the_next_robot_unasked(harness: Harness) -> None:
+    harness.dispatcher.on_lease("r1", LeaseRequest(request_id="1", place="elevator"))
+    harness.dispatcher.on_lease("r2", LeaseRequest(request_id="2", place="elevator"))
+    grants = [m for _, m in harness.sent if isinstance(m, LeaseGrant)]
+    assert [(g.granted, g.holder) for g in grants] == [(True, "r1"), (False, "r1")]
+    harness.dispatcher.on_lease("r1", LeaseRequest(request_id="3", place="elevator", want=False))
+    robot, handed = harness.sent[-1]
+    assert robot == "r2" and isinstance(handed, LeaseGrant) and handed.granted
