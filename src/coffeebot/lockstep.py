@@ -145,15 +145,24 @@ class Lockstep:
             if slot is not None:
                 slot.waiter = waiter
                 self._settled.notify()  # the world may be waiting for this worker
+            free_deadline: float | None = None
             try:
                 while not until():
                     now = self._now()
                     if now >= deadline:
                         return
                     if self.engaged:
+                        free_deadline = None
                         waiter.wakeup.wait()
-                    else:
-                        waiter.wakeup.wait((deadline - now) / self.free_speed)
+                        continue
+                    # Not engaged, simulated time stands still: the rest of the wait passes
+                    # on the machine's clock, or a worker would wait forever at shutdown.
+                    if free_deadline is None:
+                        free_deadline = time.monotonic() + (deadline - now) / self.free_speed
+                    left = free_deadline - time.monotonic()
+                    if left <= 0:
+                        return
+                    waiter.wakeup.wait(left)
             finally:
                 self._waiters.remove(waiter)
                 if slot is not None:

@@ -129,3 +129,26 @@ async def test_an_unplugged_line_fails_the_read_as_pyserial_does() -> None:
     with pytest.raises(OSError, match="could not open port sim://motor"):
         line.open(line.port, 115200, 1.0)
     worker.close()
+
+
+def test_a_wait_ends_on_the_machines_clock_once_the_world_has_stopped() -> None:
+    """After the world's last step (shutdown) simulated time stands still: a driver's poll
+    still ends, after its length in the machine's time, so no thread outlives the run."""
+    clock = engaged_clock()
+    clock.advance(1.0)
+    clock.lockstep.engage(False)
+    sleeper = threading.Thread(target=clock.lockstep.sleep, args=(0.2,))
+    sleeper.start()
+    sleeper.join(WAIT_S)
+    assert not sleeper.is_alive(), "a 0.2 s sleep never ended once the world had stopped"
+
+
+def test_a_wait_under_way_when_the_world_stops_ends_too() -> None:
+    clock = engaged_clock()
+    sleeper = threading.Thread(target=clock.lockstep.sleep, args=(0.2,))
+    sleeper.start()
+    sleeper.join(0.1)
+    assert sleeper.is_alive(), "an engaged sleep ended without simulated time passing"
+    clock.lockstep.engage(False)
+    sleeper.join(WAIT_S)
+    assert not sleeper.is_alive(), "the sleep outlived the world"

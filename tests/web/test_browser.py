@@ -153,7 +153,12 @@ async def served(tmp_path_factory: pytest.TempPathFactory) -> AsyncIterator[Serv
             board=board,
             orders=orders,
             rooms=office_choices(PLAN),
-            config=WebConfig(port=0, stream_period_s=0.2, progress_period_s=0.3),
+            config=WebConfig(
+                port=0,
+                stream_period_s=0.2,
+                progress_period_s=0.3,
+                order_burst=100,  # every test here orders from 127.0.0.1, at the test's pace
+            ),
             operator_token=TOKEN,
             modules=lambda: daemon.modules,
             floor_svg=floor_svgs(PLAN),
