@@ -96,7 +96,7 @@ def _measure_angle(
     estimator = AngleEstimator(config.tof.sensors, config.angle, config.tof.effective_half_fov_deg)
     result: AngleEstimate | Rejection = Rejection("no scans")
     for k in range(config.angle.scans_per_estimate):
-        scan = to_scan(world.scan(robot_setup(config.tof)), k / SCAN_HZ)
+        scan = to_scan(world.robot.scan(robot_setup(config.tof)), k / SCAN_HZ)
         result = estimator.update(scan, k, prior, floor, False, k / SCAN_HZ)
     return result
 
@@ -104,7 +104,7 @@ def _measure_angle(
 def _seed_rule_angle(world: World, config: RobotConfig, side: str) -> float | None:
     """What the seed's rule alone computes from one side's raw pair (no checks)."""
     pair = side_pairs(config.tof.sensors)[side]  # type: ignore[index]
-    scan = to_scan(world.scan(robot_setup(config.tof)), 0)
+    scan = to_scan(world.robot.scan(robot_setup(config.tof)), 0)
     readings = {i: valid_distance(r) for i, r in enumerate(scan.readings)}
     front, rear = readings.get(pair.front.id), readings.get(pair.rear.id)
     if front is None or rear is None:
@@ -133,9 +133,9 @@ def bench_angle(
     ]
     for name, use_floor, s, d, heading, side in setups:
         x, y = floor.from_hallway(s, d)
-        world.place_robot(Pose(x, y, heading), 2)
+        world.robot.place(Pose(x, y, heading), 2)
         true = TravelFrame.for_heading(floor, heading).angle_deg(heading)
-        result = _measure_angle(world, use_floor, config, known_pose(world.pose, 2, 50, 3))
+        result = _measure_angle(world, use_floor, config, known_pose(world.robot.pose, 2, 50, 3))
         situations.append(
             {
                 "name": name,
@@ -162,7 +162,7 @@ def bench_angle(
         direction = 0.0 if rng.random() < 0.5 else 180.0
         true = float(rng.uniform(-30, 30))
         x, y = f.from_hallway(s, d)
-        world.place_robot(Pose(x, y, direction + true), level)
+        world.robot.place(Pose(x, y, direction + true), level)
         bias = float(rng.normal(0, 2.0))
         prior = Pose(
             x + float(rng.normal(0, 50)), y + float(rng.normal(0, 50)), direction + true + bias
@@ -258,7 +258,7 @@ def bench_door(
 
 def _clearance(world: World, obstacle: ObstacleSpec) -> float:
     """Gap between the body's rectangle and the obstacle's parts within the body's height."""
-    return world.clearance_mm(obstacle_surfaces(obstacle, world.t_s))
+    return world.robot.clearance_mm(obstacle_surfaces(obstacle, world.t_s))
 
 
 def _approach(
@@ -290,31 +290,32 @@ def _approach(
     seq = 0
     while world.t_s < 5000 / speed + 8.0:
         seq += 1
-        left, right = world.wheel_speeds_mm_s
+        left, right = world.robot.wheel_speeds_mm_s
         # As the collision module with a good pose: the plan's walls place what they explain.
         explain = explainer(
-            floor, known_pose(world.pose, obstacle.floor, 10, 1), config.motion.wall_margin_mm
+            floor, known_pose(world.robot.pose, obstacle.floor, 10, 1), config.motion.wall_margin_mm
         )
         verdict = monitor.update(
-            to_scan(world.scan(setup), world.t_s), (left + right) / 2, seq, 0.0, explain
+            to_scan(world.robot.scan(setup), world.t_s), (left + right) / 2, seq, 0.0, explain
         )
         target = {
             SafetyState.GO: speed,
             SafetyState.SLOW: min(speed, verdict.speed_limit_mm_s),
             SafetyState.STOP: 0.0,
         }[verdict.state]
-        pose = world.pose
+        pose = world.robot.pose
         s, d = floor.to_hallway(pose.x_mm, pose.y_mm)
         # Lane keeping as motion does it (pure pursuit on the lane, heading hold).
         heading = lane_heading_deg(floor.hallway.heading_deg, LANE_D_MM - d, config.motion)
         turn = turn_rate_dps(pose.heading_deg, heading, config.motion) if target else 0.0
-        world.command_wheels(*wheel_speeds(target, turn, spec.wheel_base_mm))
+        world.robot.command_wheels(*wheel_speeds(target, turn, spec.wheel_base_mm))
         world.step(1.0 / SCAN_HZ)
         clearance = min(clearance, _clearance(world, obstacle))
-        stopped_for = stopped_for + 1.0 / SCAN_HZ if abs(world.body.state.speed_mm_s) < 1 else 0
-        if world.collisions or stopped_for > 2.0 or s > start_s + 7000:
+        standing = abs(world.robot.body.state.speed_mm_s) < 1
+        stopped_for = stopped_for + 1.0 / SCAN_HZ if standing else 0
+        if world.robot.collisions or stopped_for > 2.0 or s > start_s + 7000:
             break
-    hits = [c for c in world.collisions if c.element.startswith(obstacle.id)]
+    hits = [c for c in world.robot.collisions if c.element.startswith(obstacle.id)]
     return {
         "obstacle": obstacle.id,
         "speed_mm_s": speed,
@@ -403,37 +404,37 @@ def bench_localization(
         end = floor.hallway.length_mm - 1000
         dt = 0.02  # motor-controller telemetry at 50 Hz, scans and UWB at 10 Hz
         tick = 0
-        first_fix = world.uwb_fix()
+        first_fix = world.robot.uwb_fix()
         assert first_fix is not None
         state.place(first_fix.x_mm, first_fix.y_mm, floor.hallway.heading_deg, level)
         while world.t_s < 200:
             tick += 1
             moving = world.t_s > 1.0  # one second at rest: the gyro calibration (seed 004)
-            pose = world.pose
+            pose = world.robot.pose
             s, d = floor.to_hallway(pose.x_mm, pose.y_mm)
             if s > end:
                 break
-            left, right = world.encoder_ticks
-            wl, wr = world.wheel_speeds_mm_s
+            left, right = world.robot.encoder_ticks
+            wl, wr = world.robot.wheel_speeds_mm_s
             now = world.t_s
             state.on_odometry(
                 Odometry(
                     controller_time_ms=round(now * 1000),
                     left_ticks=left,
                     right_ticks=right,
-                    gyro_z_dps=world.gyro_z_dps(),
+                    gyro_z_dps=world.robot.gyro_z_dps(),
                     left_mm_s=wl,
                     right_mm_s=wr,
                 ),
                 now,
             )
             if tick % 5 == 0:
-                fix = world.uwb_fix()
+                fix = world.robot.uwb_fix()
                 if fix is not None:
                     state.on_uwb(fix, now)
                     uwb.append(math.hypot(fix.x_mm - pose.x_mm, fix.y_mm - pose.y_mm))
                 estimate = state.pose()
-                scan = to_scan(world.scan(robot_setup(config.tof)), now)
+                scan = to_scan(world.robot.scan(robot_setup(config.tof)), now)
                 result = angle.update(scan, tick, estimate, floor, False, now)
                 if isinstance(result, AngleEstimate):
                     state.on_angle(result, now)
@@ -447,7 +448,7 @@ def bench_localization(
             heading_error = math.radians(wrap_deg(pose.heading_deg - floor.hallway.heading_deg))
             target = speed if moving else 0.0
             turn = 2.0 * (-0.004 * (d - LANE_D_MM) - heading_error) * half_base if moving else 0
-            world.command_wheels(target - turn, target + turn)
+            world.robot.command_wheels(target - turn, target + turn)
             world.step(dt)
     return {
         "rms_mm": round(rms(fused), 1),

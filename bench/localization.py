@@ -64,7 +64,7 @@ def to_scan(world: World, setup: RangingSetup, t: float) -> RangeScan:
     return RangeScan(
         cycle_start_s=t,
         cycle_time_s=DT_S * SCAN_EVERY,
-        readings=[as_range_reading(i, r) for i, r in enumerate(world.scan(setup))],
+        readings=[as_range_reading(i, r) for i, r in enumerate(world.robot.scan(setup))],
     )
 
 
@@ -123,25 +123,25 @@ class Drive:
         world = self.world
         self.tick += 1
         now = world.t_s
-        lt, rt = world.encoder_ticks
-        wl, wr = world.wheel_speeds_mm_s
+        lt, rt = world.robot.encoder_ticks
+        wl, wr = world.robot.wheel_speeds_mm_s
         odo = Odometry(
             controller_time_ms=round(now * 1000),
             left_ticks=lt,
             right_ticks=rt,
-            gyro_z_dps=world.gyro_z_dps(),
+            gyro_z_dps=world.robot.gyro_z_dps(),
             left_mm_s=wl,
             right_mm_s=wr,
         )
         for f in self.filters:
             self._timed(f, functools.partial(f.state.on_odometry, odo, now))
         if self.tick % SCAN_EVERY == 0:
-            fix = None if self.uwb_blocked(now) else world.uwb_fix()
+            fix = None if self.uwb_blocked(now) else world.robot.uwb_fix()
             if fix is not None:
-                truth = world.pose
+                truth = world.robot.pose
                 self.uwb_errors.append(math.hypot(fix.x_mm - truth.x_mm, fix.y_mm - truth.y_mm))
             scan = to_scan(world, self.setup, now)
-            floor = world.floor
+            floor = world.robot.floor
             for f in self.filters:
                 self._timed(f, functools.partial(self._measure, f, fix, scan, floor, now))
                 f.cpu_s.append(self._cycle_cpu[f.name])
@@ -149,10 +149,10 @@ class Drive:
                 summary = f.state.fusion.summary()
                 if summary is not None:
                     f.counts.append(summary.count)
-        before = world.pose
-        world.command_wheels(left, right)
+        before = world.robot.pose
+        world.robot.command_wheels(left, right)
         world.step(DT_S)
-        self.travel_mm += math.dist(before[:2], world.pose[:2])
+        self.travel_mm += math.dist(before[:2], world.robot.pose[:2])
 
     def _measure(
         self, f: Filter, fix: UwbFix | None, scan: RangeScan, floor: Floor, now: float
@@ -173,7 +173,7 @@ class Drive:
     # --- ground-truth driving ------------------------------------------------------------
 
     def lane_speeds(self, direction_deg: float, lane_mm: float) -> tuple[float, float]:
-        floor, pose = self.world.floor, self.world.pose
+        floor, pose = self.world.robot.floor, self.world.robot.pose
         _, d = floor.to_hallway(pose.x_mm, pose.y_mm)
         sign = 1.0 if abs(wrap_deg(direction_deg - floor.hallway.heading_deg)) < 90 else -1.0
         heading_error = math.radians(wrap_deg(pose.heading_deg - direction_deg))
@@ -183,7 +183,7 @@ class Drive:
     def turn_to(self, heading_deg: float, on_each: Callable[[], None] | None = None) -> None:
         """On the spot until within 3 degrees."""
         for _ in range(2000):
-            error = wrap_deg(heading_deg - self.world.pose.heading_deg)
+            error = wrap_deg(heading_deg - self.world.robot.pose.heading_deg)
             if abs(error) < 3.0:
                 return
             rate = max(-150.0, min(150.0, 4.0 * error))
@@ -199,12 +199,12 @@ class Drive:
         on_each: Callable[[], None] | None = None,
     ) -> None:
         """Along the hallway for ``distance_mm`` of travel (or until 2 m from its end)."""
-        floor = self.world.floor
+        floor = self.world.robot.floor
         goal = self.travel_mm + distance_mm
         forward = abs(wrap_deg(direction_deg - floor.hallway.heading_deg)) < 90
         deadline = self.world.t_s + min(distance_mm, 50_000.0) / SPEED_MM_S * 2 + 10.0
         while self.travel_mm < goal and self.world.t_s < deadline:
-            s, _ = floor.to_hallway(self.world.pose.x_mm, self.world.pose.y_mm)
+            s, _ = floor.to_hallway(self.world.robot.pose.x_mm, self.world.robot.pose.y_mm)
             if (forward and s > floor.hallway.length_mm - 2000) or (not forward and s < 2000):
                 break
             self.step(*self.lane_speeds(direction_deg, lane_mm))
@@ -250,7 +250,7 @@ def bench_tracking(plan: FloorPlan, config: RobotConfig, spec: RobotSpec) -> dic
         def record(drive: Drive = drive, filters: list[Filter] = filters) -> None:
             if drive.tick % SCAN_EVERY == 0:
                 for f in filters:
-                    errors[f.name].append(f.error(drive.world.pose))
+                    errors[f.name].append(f.error(drive.world.robot.pose))
 
         drive.drive(1e9, floor.hallway.heading_deg, LANE_D_MM, record)
         uwb += drive.uwb_errors
@@ -287,7 +287,7 @@ def bench_outage(plan: FloorPlan, config: RobotConfig, spec: RobotSpec) -> dict[
     window: dict[str, float] = {}
 
     def blocked(t: float) -> bool:
-        s, _ = floor.to_hallway(world.pose.x_mm, world.pose.y_mm)
+        s, _ = floor.to_hallway(world.robot.pose.x_mm, world.robot.pose.y_mm)
         if "start" not in window and s >= 10_000:
             window["start"] = t
         return "start" in window and t < window["start"] + 30.0
@@ -299,7 +299,7 @@ def bench_outage(plan: FloorPlan, config: RobotConfig, spec: RobotSpec) -> dict[
         t = world.t_s
         if "start" in window and t < window["start"] + 35.0 and drive.tick % SCAN_EVERY == 0:
             for f in filters:
-                worst[f.name] = max(worst[f.name], f.error(world.pose)[0])
+                worst[f.name] = max(worst[f.name], f.error(world.robot.pose)[0])
 
     drive.drive(1e9, floor.hallway.heading_deg, LANE_D_MM, record)
     return {name: {"max_error_mm": round(value, 1)} for name, value in worst.items()}
@@ -318,7 +318,7 @@ def _until_settled(
     def check() -> None:
         if drive.tick % SCAN_EVERY:
             return
-        position, heading = f.error(drive.world.pose)
+        position, heading = f.error(drive.world.robot.pose)
         if position <= RECOVERED_MM and heading <= RECOVERED_DEG:
             if settled[0] is None:
                 settled[0] = drive.travel_mm - start
@@ -356,12 +356,12 @@ def bench_kidnap(
         drive.rest(1.0)
         drive.drive(1500, direction, lane)
         # Lifted 3 m along the hallway (either way) and turned by 90 degrees (either way).
-        pose = world.pose
+        pose = world.robot.pose
         ps, pd = floor.to_hallway(pose.x_mm, pose.y_mm)
         ks = ps + (3000.0 if rng.random() < 0.5 else -3000.0)
         kx, ky = floor.from_hallway(ks, float(np.clip(pd, -350, 350)))
         turned = pose.heading_deg + (90.0 if rng.random() < 0.5 else -90.0)
-        world.place_robot(Pose(kx, ky, turned), level)
+        world.robot.place(Pose(kx, ky, turned), level)
         drive.turn_to(direction)
         travel = _until_settled(drive, f, 6000.0, direction, lane)
         if travel is not None:

@@ -584,9 +584,9 @@ class Probe(Module):
         try:
             while True:
                 with self.sim.world_time() as world:
-                    record.sample(world.t_s, world.body.state)
+                    record.sample(world.t_s, world.robot.body.state)
                     for i in self.watch:
-                        gap = world.clearance_mm(world.obstacle_at(i))
+                        gap = world.robot.clearance_mm(world.obstacle_at(i))
                         record.clearance_mm = min(record.clearance_mm, gap)
                 why = self.end(self.sim, record)
                 if why is not None:
@@ -604,11 +604,11 @@ class Probe(Module):
 def case_end(lane: Lane, setup: Setup) -> EndRule:
     def end(sim: Simulation, record: Record) -> str | None:
         world = sim.world
-        if world.collisions and world.t_s - world.collisions[0].t_s >= AFTER_CONTACT_S:
+        if world.robot.collisions and world.t_s - world.robot.collisions[0].t_s >= AFTER_CONTACT_S:
             return "contact"
         if world.t_s >= setup.time_limit_s:
             return "time limit"
-        if lane.beyond(world.pose.x_mm, world.pose.y_mm, setup.pass_s):
+        if lane.beyond(world.robot.pose.x_mm, world.robot.pose.y_mm, setup.pass_s):
             return "passed"
         if record.stood_s() >= STOOD_S:
             return "stood still"
@@ -681,7 +681,7 @@ def judged_contacts(world: World) -> list[dict[str, Any]]:
     owners = {spec.id: i for i, spec in enumerate(world.obstacles)}
     found: list[dict[str, Any]] = []
     last: dict[str, float] = {}
-    for c in world.collisions:
+    for c in world.robot.collisions:
         owner = next((o for o in owners if c.element.startswith(f"{o} ")), None)
         key = owner or c.element
         merged = key in last and c.t_s - last[key] <= CONTACT_MERGE_S
@@ -690,7 +690,7 @@ def judged_contacts(world: World) -> list[dict[str, Any]]:
             continue
         velocity = (0.0, 0.0) if owner is None else _object_velocity(world, owners[owner], c.t_s)
         j = judge_contact(
-            c.element, (c.x_mm, c.y_mm), c.body, world.robot, velocity, _element(world, c)
+            c.element, (c.x_mm, c.y_mm), c.body, world.robot.spec, velocity, _element(world, c)
         )
         found.append(
             {
@@ -721,7 +721,7 @@ def judge_run(sim: Simulation, record: Record, config: RobotConfig) -> dict[str,
     """Contacts, clearance and stop latency of one run whose every obstacle is the case's."""
     world = sim.world
     trajectory = Trajectory.from_samples([s[:5] for s in record.samples])
-    mounts = world.sensors.mounts
+    mounts = world.robot.sensors.mounts
     max_range = RANGING_MM
     reach = max_range + max(math.hypot(m.x_mm, m.y_mm) for m in mounts)
     commands = forward_commands(sim)
@@ -736,17 +736,17 @@ def judge_run(sim: Simulation, record: Record, config: RobotConfig) -> dict[str,
         seen = target(t)
         if not any(len(i) for i in seen.near(pose.x_mm, pose.y_mm, reach)):
             return False
-        return bool(seeing_sensors(seen, world.surfaces(t), mounts, pose, max_range))
+        return bool(seeing_sensors(seen, world.robot.surfaces(t), mounts, pose, max_range))
 
     def hazard(t: float, pose: RobotPose) -> bool:
         speed = abs(pose.speed_mm_s)
         if speed < MOVING_MM_S:
             return False
         depth = stop_distance_mm(config.collision, speed)
-        return in_the_way(target(t), pose, world.robot, depth) and visible(t, pose)
+        return in_the_way(target(t), pose, world.robot.spec, depth) and visible(t, pose)
 
     def in_path(t: float, pose: RobotPose) -> bool:
-        return in_the_way(target(t), pose, world.robot, PATH_DEPTH_MM)
+        return in_the_way(target(t), pose, world.robot.spec, PATH_DEPTH_MM)
 
     seen_s = first_time(trajectory, visible)
     hazard_s = first_time(trajectory, hazard)
@@ -789,7 +789,7 @@ def judge_run(sim: Simulation, record: Record, config: RobotConfig) -> dict[str,
 def distance_ahead_mm(surfaces: Surfaces, pose: RobotPose, world: World) -> float | None:
     """How far ahead of the front face the nearest part of ``surfaces`` in the body's path
     (its width, ``PATH_DEPTH_MM`` deep, within its height) is."""
-    robot = world.robot
+    robot = world.robot.spec
     c, s = math.cos(pose.theta), math.sin(pose.theta)
     ahead = robot.length_mm / 2 + PATH_DEPTH_MM / 2
     hits = footprint_contacts(
@@ -942,7 +942,7 @@ def run_hallway(level: int, speed: float, sim_speed: float) -> dict[str, Any]:
         "safety_stop_reasons": gate,
         "standstills": standstills(record),
         **record.stall_fields(),
-        "contacts": len(sim.world.collisions),
+        "contacts": len(sim.robot.collisions),
         "sim_s": round(sim.world.t_s, 1),
     }
 
@@ -1065,7 +1065,7 @@ def run_held(name: str, sim_speed: float) -> dict[str, Any]:
         "how": out[1] if out else f"still held at the {HELD_LIMIT_S:.0f} s limit",
         "capped": out is None,
         "held_by": stops[-1] if stops else "",
-        "contacts": len(sim.world.collisions),
+        "contacts": len(sim.robot.collisions),
         **record.stall_fields(),
     }
 

@@ -83,7 +83,7 @@ class Probe(Module):
     def sample(self) -> Sample:
         sim = self.sim
         with sim.lock:
-            world_cpu_s, sim_s = sim.cpu_s, sim.t_s
+            world_cpu_s, sim_s = sim.shared.cpu_s, sim.t_s
         return Sample(time.monotonic(), time.process_time(), world_cpu_s, rss_mb(), sim_s)
 
     async def run(self, ctx: ModuleContext) -> None:
@@ -111,7 +111,8 @@ class Probe(Module):
         snapshot = runtime.board.snapshot()
         drops = sum(t.overflowed for t in snapshot.topics if t.delivery is Delivery.RELIABLE)
         restarts = sum(s.restarts for s in runtime.daemon.states.values())
-        orders = Counter(o.status for o in await runtime.store.with_status(list(OrderStatus)))
+        stored = await runtime.own_orders().store.with_status(list(OrderStatus))
+        orders = Counter(o.status for o in stored)
         print(
             f"| {label} | {now.sim_s:.0f} | {now.rss_mb:.1f} | {cpu} | {world} | {drops} | "
             f"{restarts} | {sum(orders.values())} | {orders[OrderStatus.DELIVERED]} | "
@@ -136,7 +137,7 @@ class OrderPage(Module):
         await web.started.wait()
         async with aiohttp.ClientSession(base_url=web.url) as http:
             while True:
-                newest = await self.runtime.store.with_status(list(OrderStatus))
+                newest = await self.runtime.own_orders().store.with_status(list(OrderStatus))
                 if newest:
                     async with http.get(f"/api/orders/{newest[-1].id}") as response:
                         response.raise_for_status()
@@ -173,7 +174,7 @@ async def soak(minutes: float, speed: float, warmup_s: float, order_every_s: flo
 
     def add(runtime: Runtime, sim: Simulation) -> list[Module]:
         driver = ScenarioModule(
-            scenario, plan, runtime.config, sim, runtime.orders, runtime.request_stop
+            scenario, plan, runtime.config, sim, runtime.own_orders(), runtime.request_stop
         )
         probe.append(Probe(runtime, sim, minutes, warmup_s))
         page.append(OrderPage(runtime))

@@ -254,7 +254,7 @@ class LoadBench(Module):
             async for update in updates:
                 if update.msg.status is OrderStatus.ON_THE_WAY:
                     break
-        first = (await runtime.store.with_status(list(OrderStatus)))[0]
+        first = (await runtime.own_orders().store.with_status(list(OrderStatus)))[0]
         phases = [
             Phase("GET /healthz (baseline)", "/healthz"),
             Phase("POST /api/orders, 1 client", "/api/orders", "POST", concurrency=1),
@@ -277,7 +277,7 @@ class LoadBench(Module):
 
         def sample() -> tuple[float, float, float, float, tuple[float, float]]:
             with sim.lock:
-                world, pose = sim.cpu_s, (sim.world.pose.x_mm, sim.world.pose.y_mm)
+                world, pose = sim.shared.cpu_s, (sim.robot.pose.x_mm, sim.robot.pose.y_mm)
             return clock.now(), time.monotonic(), time.process_time(), world, pose
 
         samples = []
@@ -323,7 +323,7 @@ async def serve_and_measure(
 
     def add(runtime: Runtime, sim: Simulation) -> list[Module]:
         driver = ScenarioModule(
-            scenario, plan, runtime.config, sim, runtime.orders, runtime.request_stop
+            scenario, plan, runtime.config, sim, runtime.own_orders(), runtime.request_stop
         )
         tap = LoopTap(runtime.board)
         bench.append(LoadBench(runtime, sim, tap, requests, seconds, streams, period_s))

@@ -44,7 +44,7 @@ OBSTACLES = [
 
 
 def _poses(world: World, n: int) -> list[Pose]:
-    floor = world.floor
+    floor = world.robot.floor
     rng = np.random.default_rng(0)
     poses = []
     for _ in range(n):
@@ -57,11 +57,11 @@ def _naive_background(world: World) -> np.ndarray:
     """Per direction, per surface, in plain Python: the path along each sampled direction of
     every cone to the first wall, face or floor (the layer the vectorised optics compute
     first; poles are left out here, since they only share that direction's light)."""
-    s = world.body.state
-    surfaces = world.surfaces()
+    s = world.robot.body.state
+    surfaces = world.robot.surfaces()
     az_deg, el_deg, _mask = tof._grid(world.optics)
     out = []
-    for mount in world.sensors.mounts:
+    for mount in world.robot.sensors.mounts:
         ox = s.x + math.cos(s.theta) * mount.x_mm - math.sin(s.theta) * mount.y_mm
         oy = s.y + math.sin(s.theta) * mount.x_mm + math.cos(s.theta) * mount.y_mm
         rows = []
@@ -94,17 +94,17 @@ def _naive_background(world: World) -> np.ndarray:
 
 def _layers(world: World) -> tof.Layers:
     """Every cone's optics at the world's pose, as the chips' first question each step."""
-    s = world.body.state
-    surfaces = world.surfaces()
+    s = world.robot.body.state
+    surfaces = world.robot.surfaces()
     near = surfaces.take(*surfaces.near(s.x, s.y, world.optics.max_path_mm + 400.0))
-    return world.sensors.layers(s.x, s.y, s.theta, near)
+    return world.robot.sensors.layers(s.x, s.y, s.theta, near)
 
 
 def _rate(world: World, poses: list[Pose], work: Callable[[], object]) -> tuple[int, float]:
     """Time ``work`` alone at each pose (placing the robot is not part of a scan)."""
     elapsed = 0.0
     for pose in poses:
-        world.place_robot(pose)
+        world.robot.place(pose)
         start = time.perf_counter()
         work()
         elapsed += time.perf_counter() - start
@@ -127,7 +127,7 @@ def main() -> None:
     reach = furnished.optics.max_path_mm
     check = _poses(furnished, args.naive_scans)
     for pose in check:
-        furnished.place_robot(pose)
+        furnished.robot.place(pose)
         fast = _layers(furnished).path_mm[..., 0]
         slow = _naive_background(furnished)
         in_reach = (slow <= reach) & (fast > 0)
@@ -144,14 +144,15 @@ def main() -> None:
     rows.append(
         ("vectorised optics, obstacles", *_rate(furnished, poses, lambda: _layers(furnished)))
     )
-    rows.append(("optics + ranging (scan), obstacles", *_rate(furnished, poses, furnished.scan)))
+    ranging = _rate(furnished, poses, furnished.robot.scan)
+    rows.append(("optics + ranging (scan), obstacles", *ranging))
 
     def live() -> None:
-        furnished.command_wheels(400, 400)
+        furnished.robot.command_wheels(400, 400)
         furnished.step(1 / SCAN_RATE_HZ)
-        furnished.scan()
+        furnished.robot.scan()
 
-    furnished.place_robot(hallway_pose(furnished.floor, 2000, -400))
+    furnished.robot.place(hallway_pose(furnished.robot.floor, 2000, -400))
     start = time.perf_counter()
     for _ in range(args.scans):
         live()
@@ -159,10 +160,10 @@ def main() -> None:
 
     naive_rate = rows[0][1] / rows[0][2]
     az, el, mask = tof._grid(furnished.optics)
-    segments = len(furnished.surfaces().segments)
-    cylinders = len(furnished.surfaces().cylinders)
+    segments = len(furnished.robot.surfaces().segments)
+    cylinders = len(furnished.robot.surfaces().cylinders)
     print(
-        f"{len(furnished.sensors.mounts)} sensors x {int(mask.sum())} directions "
+        f"{len(furnished.robot.sensors.mounts)} sensors x {int(mask.sum())} directions "
         f"({len(az)} x {len(el)} grid), CS building floor 2: {segments} segments, "
         f"{cylinders} cylinders with obstacles; target >= 1000 scans/s"
     )

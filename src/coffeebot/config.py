@@ -936,6 +936,9 @@ class FleetConfig(Section):
         pattern=r"^([a-z0-9][a-z0-9-]{0,31})?$",
         description="its name on the broker (empty: the board's name)",
     )
+    parking_spot: int = Field(
+        0, ge=0, le=63, description="which of the floor plan's parking spots is this robot's"
+    )
     state_hz: float = Field(2.0, gt=0, le=20, description="state reports per second")
     lease_renew_s: float = Field(
         5.0, gt=0, le=600, description="a held place is asked for again this often"

@@ -124,6 +124,15 @@ class Wall(_Model):
     closed: bool = False
 
 
+class ParkingSpot(_Model):
+    """Where one robot of a fleet waits for orders: inside the room with the loading spot,
+    out of the way of the door (a single robot parks on the loading spot itself)."""
+
+    x_mm: Coordinate
+    y_mm: Coordinate
+    heading_deg: float = Field(0.0, ge=-360, le=360)
+
+
 class AngleZone(_Model):
     """A stretch of hallway where both walls are flat, so side sensors can measure heading."""
 
@@ -187,6 +196,8 @@ class Floor(_Model):
     walls: list[Wall] = []
     angle_zones: list[AngleZone] = []
     anchors: list[Anchor] = []
+    parking: list[ParkingSpot] = []
+    """A fleet's robots' places to wait, one each (in the tea room's floor)."""
 
     # --- hallway frame ---------------------------------------------------------------------
 

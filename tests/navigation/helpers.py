@@ -35,7 +35,7 @@ SETUP = robot_setup(CONFIG.tof)
 
 
 def to_scan(world: World) -> RangeScan:
-    readings = [as_range_reading(k, r) for k, r in enumerate(world.scan(SETUP))]
+    readings = [as_range_reading(k, r) for k, r in enumerate(world.robot.scan(SETUP))]
     return RangeScan(cycle_start_s=world.t_s, cycle_time_s=DT, readings=readings)
 
 
@@ -53,12 +53,12 @@ def estimate_at(floor: int, x: float, y: float, heading: float = 0.0) -> PoseEst
 
 
 def true_pose(world: World) -> PoseEstimate:
-    body = world.body.state
+    body = world.robot.body.state
     return PoseEstimate(
-        x_mm=world.pose.x_mm,
-        y_mm=world.pose.y_mm,
-        heading_deg=world.pose.heading_deg,
-        floor=world.floor_level,
+        x_mm=world.robot.pose.x_mm,
+        y_mm=world.robot.pose.y_mm,
+        heading_deg=world.robot.pose.heading_deg,
+        floor=world.robot.floor_level,
         sigma_x_mm=0.0,
         sigma_y_mm=0.0,
         sigma_heading_deg=0.0,
@@ -98,7 +98,7 @@ def drive(
         )
         # As the collision module with a good pose: the plan's walls place what they explain.
         explain = explainer(PLAN.floor(pose.floor), pose, CONFIG.motion.wall_margin_mm)
-        yaw_rate = math.degrees(world.body.state.yaw_rate_rad_s)
+        yaw_rate = math.degrees(world.robot.body.state.yaw_rate_rad_s)
         verdict = monitor.update(scan, pose.speed_mm_s, seq, yaw_rate, explain)
         limit = 0.0 if verdict.state is SafetyState.STOP else verdict.speed_limit_mm_s
         if limit <= 0 and verdict.may_rotate:
@@ -106,25 +106,25 @@ def drive(
             command = module.controller.step(instruction, pose, world.t_s, DT, 0.0)
             run.states.append(command.status.state)
             turn = wheel_speeds(0.0, command.yaw_rate_dps, CONFIG.motor.wheel_base_mm)
-            world.command_wheels(*turn)
+            world.robot.command_wheels(*turn)
         elif limit <= 0 and verdict.may_creep_ahead:
             # As the motion module: held beside something, it may creep straight ahead.
             creep = CONFIG.collision.creep_ahead_mm_s
             command = module.controller.step(instruction, pose, world.t_s, DT, creep)
             run.states.append(command.status.state)
-            world.command_wheels(command.speed_mm_s, command.speed_mm_s)
+            world.robot.command_wheels(command.speed_mm_s, command.speed_mm_s)
         elif limit <= 0:
             module.controller.halt()
-            world.command_wheels(0.0, 0.0)
+            world.robot.command_wheels(0.0, 0.0)
         else:
             command = module.controller.step(instruction, pose, world.t_s, DT, limit)
             run.states.append(command.status.state)
             if command.status.state is MotionState.DONE:
                 run.done = True
-                world.command_wheels(0.0, 0.0)
+                world.robot.command_wheels(0.0, 0.0)
                 world.step(1.0)
                 return run
-            world.command_wheels(
+            world.robot.command_wheels(
                 *wheel_speeds(command.speed_mm_s, command.yaw_rate_dps, CONFIG.motor.wheel_base_mm)
             )
         world.step(DT)

@@ -40,8 +40,8 @@ def lane(to_s: float, avoid: bool = True) -> MoveInstruction:
 def test_keeps_the_lane_and_stops_at_the_target() -> None:
     world = world_at(13000, 0.0)
     run = drive(world, lane(19000), max_time_s=60)
-    s, d = FLOOR.to_hallway(world.pose.x_mm, world.pose.y_mm)
-    assert run.done and not world.collisions
+    s, d = FLOOR.to_hallway(world.robot.pose.x_mm, world.robot.pose.y_mm)
+    assert run.done and not world.robot.collisions
     assert abs(s - 19000) <= CONFIG.motion.stop_tolerance_mm
     assert abs(d - LANE) < 60
 
@@ -60,11 +60,11 @@ def box_in_lane() -> World:
 def assert_went_round(world: World, run: Run, stop_s: float | None = None) -> None:
     """Went round without touching anything and finished; with ``stop_s``, stopped there
     and back in its lane."""
-    assert not world.collisions
+    assert not world.robot.collisions
     assert MotionState.AVOIDING in run.states
     assert run.done
     if stop_s is not None:
-        s, d = FLOOR.to_hallway(world.pose.x_mm, world.pose.y_mm)
+        s, d = FLOOR.to_hallway(world.robot.pose.x_mm, world.robot.pose.y_mm)
         assert abs(s - stop_s) <= CONFIG.motion.stop_tolerance_mm and abs(d - LANE) < 100
 
 
@@ -98,7 +98,7 @@ def test_regains_the_lane_without_weaving() -> None:
     more than pose noise would: the lateral loop is well damped."""
     world = world_at(13000, LANE + 200)
     run = drive(world, lane(19000), max_time_s=60)
-    assert run.done and not world.collisions
+    assert run.done and not world.robot.collisions
     offsets = [FLOOR.to_hallway(x, y)[1] - LANE for x, y, _ in run.path]
     assert min(offsets) > -25, f"swung {-min(offsets):.0f} mm past the lane"
     assert abs(offsets[-1]) < 25
@@ -109,7 +109,7 @@ def test_waits_for_a_box_it_may_not_drive_around() -> None:
     box = ObstacleSpec(id="box", kind="cardboard_box", floor=2, x_mm=bx, y_mm=by)
     world = world_at(13000, LANE, [box])
     run = drive(world, lane(21000, avoid=False), max_time_s=40)
-    assert not world.collisions and not run.done
+    assert not world.robot.collisions and not run.done
     assert run.states[-1] is MotionState.WAITING
 
 
@@ -128,6 +128,6 @@ def test_waits_for_a_person_walking_towards_it() -> None:
     )
     world = world_at(13000, LANE, [person])
     run = drive(world, lane(21000), max_time_s=30)
-    assert not world.collisions
+    assert not world.robot.collisions
     assert MotionState.WAITING in run.states
     assert MotionState.AVOIDING not in run.states[: run.states.index(MotionState.WAITING) + 5]

@@ -240,28 +240,28 @@ class Run:
     def step(self, left: float, right: float) -> None:
         w, now = self.world, self.world.t_s
         self.tick += 1
-        lt, rt = w.encoder_ticks
+        lt, rt = w.robot.encoder_ticks
         self.state.on_odometry(
             Odometry(
                 controller_time_ms=round(now * 1000),
                 left_ticks=lt,
                 right_ticks=rt,
-                gyro_z_dps=w.gyro_z_dps(),
+                gyro_z_dps=w.robot.gyro_z_dps(),
                 left_mm_s=0.0,
                 right_mm_s=0.0,
             ),
             now,
         )
         if self.tick % 5 == 0:
-            fix = w.uwb_fix() if self.uwb else None
+            fix = w.robot.uwb_fix() if self.uwb else None
             if fix is not None:
                 self.state.on_uwb(fix, now)
-            readings = [as_range_reading(i, r) for i, r in enumerate(w.scan(SETUP))]
+            readings = [as_range_reading(i, r) for i, r in enumerate(w.robot.scan(SETUP))]
             self.state.on_scan(scan(*readings), now)
-        before = w.pose
-        w.command_wheels(left, right)
+        before = w.robot.pose
+        w.robot.command_wheels(left, right)
         w.step(0.02)
-        self.travel_mm += math.dist(before[:2], w.pose[:2])
+        self.travel_mm += math.dist(before[:2], w.robot.pose[:2])
 
     def rest(self, seconds: float) -> None:
         for _ in range(round(seconds / 0.02)):
@@ -275,12 +275,13 @@ class Run:
                 each()
 
     def turn_to(self, heading_deg: float) -> None:
-        while abs(error := math.remainder(heading_deg - self.world.pose.heading_deg, 360)) > 3:
+        robot = self.world.robot
+        while abs(error := math.remainder(heading_deg - robot.pose.heading_deg, 360)) > 3:
             rate = max(-150.0, min(150.0, 4.0 * error))
             self.step(-rate, rate)
 
     def error(self) -> tuple[float, float]:
-        e, t = self.state.pose(), self.world.pose
+        e, t = self.state.pose(), self.world.robot.pose
         return (
             math.hypot(e.x_mm - t.x_mm, e.y_mm - t.y_mm),
             abs(math.remainder(e.heading_deg - t.heading_deg, 360)),
@@ -318,10 +319,10 @@ def test_recovers_from_a_kidnap() -> None:
     run.drive(1500.0)
     assert run.error()[0] < 100
     # Lifted 3 m further down the hallway and turned by 90 degrees: odometry knows nothing.
-    floor, pose = PLAN.floor(2), run.world.pose
+    floor, pose = PLAN.floor(2), run.world.robot.pose
     s, d = floor.to_hallway(pose.x_mm, pose.y_mm)
     x, y = floor.from_hallway(s + 3000.0, d)
-    run.world.place_robot(Pose(x, y, pose.heading_deg + 90.0), 2)
+    run.world.robot.place(Pose(x, y, pose.heading_deg + 90.0), 2)
     assert run.error()[0] > 2500
     run.turn_to(floor.hallway.heading_deg)
     run.drive(3000.0)
@@ -356,7 +357,7 @@ def test_a_new_floor_widens_the_cloud_and_relocalizes_on_its_plan() -> None:
     run.drive(1000.0)
     before = run.state.pose()
     # The same spot on floor 3 (the elevator's way of moving a robot), fixes from floor 3.
-    run.world.place_robot(run.world.pose, 3)
+    run.world.robot.place(run.world.robot.pose, 3)
     run.drive(400.0)
     assert run.state.floor == 3 and run.fusion.level == 3
     assert run.fusion.field.level == 3

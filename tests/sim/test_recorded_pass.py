@@ -84,7 +84,7 @@ class LaneDriver(Module):
         while True:
             with self.sim.lock:
                 world = self.sim.world
-                s, _ = floor.to_hallway(world.pose.x_mm, world.pose.y_mm)
+                s, _ = floor.to_hallway(world.robot.pose.x_mm, world.robot.pose.y_mm)
                 left, right = lane_wheel_speeds(world, CRUISE_MM_S, LANE_MM)
             if s >= END_S_MM:
                 ctx.board.publish(MOTOR_COMMAND, MotorCommand(left_mm_s=0, right_mm_s=0))

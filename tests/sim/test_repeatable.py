@@ -51,7 +51,7 @@ class Probe(Module):
     async def run(self, ctx: ModuleContext) -> None:
         while ctx.clock.now() < RUN_S:
             with self.sim.lock:
-                pose = self.sim.world.pose
+                pose = self.sim.robot.pose
             command = ctx.board.latest(MOTOR_COMMAND)
             verdict = ctx.board.latest(COLLISION)
             self.samples.append(
@@ -74,7 +74,7 @@ async def run_once() -> list[Sample]:
     def modules(runtime: Runtime, sim: Simulation) -> list[Module]:
         probes.append(Probe(runtime, sim))
         driver = ScenarioModule(
-            SCENARIO, PLAN, runtime.config, sim, runtime.orders, runtime.request_stop
+            SCENARIO, PLAN, runtime.config, sim, runtime.own_orders(), runtime.request_stop
         )
         return [driver, probes[0]]
 

@@ -53,24 +53,24 @@ async def record_pass(path: Path) -> None:
     board = Board(ALL_TOPICS, clock=clock)
     async with Recorder(board, path):
         tick = 0
-        while floor.to_hallway(world.pose.x_mm, world.pose.y_mm)[0] < 20500:
+        while floor.to_hallway(world.robot.pose.x_mm, world.robot.pose.y_mm)[0] < 20500:
             tick += 1
             now = world.t_s
-            left, right = world.encoder_ticks
+            left, right = world.robot.encoder_ticks
             odo = Odometry(
                 controller_time_ms=round(now * 1000),
                 left_ticks=left,
                 right_ticks=right,
-                gyro_z_dps=world.gyro_z_dps(),
+                gyro_z_dps=world.robot.gyro_z_dps(),
                 left_mm_s=0.0,
                 right_mm_s=0.0,
             )
             state.on_odometry(odo, now)
             if tick % 5 == 0:
-                fix = world.uwb_fix()
+                fix = world.robot.uwb_fix()
                 if fix is not None:
                     state.on_uwb(fix, now)
-                readings = [as_range_reading(i, r) for i, r in enumerate(world.scan(SETUP))]
+                readings = [as_range_reading(i, r) for i, r in enumerate(world.robot.scan(SETUP))]
                 scan = RangeScan(cycle_start_s=now, cycle_time_s=0.1, readings=readings)
                 state.on_scan(scan, now)
                 board.publish(CURRENT_STATE, state.current(now))
@@ -78,7 +78,7 @@ async def record_pass(path: Path) -> None:
                 await asyncio.sleep(0)  # let the recorder take both
             moving = world.t_s > 1.0  # the gyro calibrates at rest first
             speeds = lane_wheel_speeds(world, 400.0, -295) if moving else (0.0, 0.0)
-            world.command_wheels(*speeds)
+            world.robot.command_wheels(*speeds)
             world.step(0.02)
             await clock.advance(0.02)
 

@@ -53,7 +53,7 @@ class Demo:
 
     def true_pose(self) -> MapPose:
         with self.sim.lock:
-            pose, floor = self.sim.world.pose, self.sim.world.floor_level
+            pose, floor = self.sim.robot.pose, self.sim.robot.floor_level
         return MapPose(x_mm=pose.x_mm, y_mm=pose.y_mm, heading_deg=pose.heading_deg, floor=floor)
 
     async def page(self, viewport: dict[str, int]) -> playwright.Page:

@@ -11,7 +11,7 @@ ROBOT = RobotSpec(right_motor_gain=1.0, slip_sigma=0.0)
 
 
 def _drive(world: World, seconds: float, speed: float, dt: float = 0.01) -> None:
-    world.command_wheels(speed, speed)
+    world.robot.command_wheels(speed, speed)
     for _ in range(round(seconds / dt)):
         world.step(dt)
 
@@ -57,11 +57,11 @@ def test_a_dropped_box_is_absent_until_it_appears_and_can_then_be_hit(
     )
     world = World(tiny_plan, ROBOT, floor=1, pose=Pose(1000, 0, 0), obstacles=[box])
     assert world.obstacle_at(0).segment_ids == ()
-    assert not any("box" in e for e in world.surfaces().segment_ids)
+    assert not any("box" in e for e in world.robot.surfaces().segment_ids)
     _drive(world, 6.0, 400)
     assert world.obstacle_start_s[0] is not None
     assert len(world.obstacle_at(0).segment_ids) == 4
-    (hit,) = world.collisions
+    (hit,) = world.robot.collisions
     assert hit.element == "box box"
     assert hit.body is not None and hit.body.speed_mm_s == pytest.approx(400.0, abs=1.0)
     # Before it appeared, the world at that time had no box.

@@ -222,8 +222,8 @@ def test_door_recess_reads_deeper_than_the_wall(
     robot = one_sensor(yaw_deg=-90)
     at_wall = World(tiny_plan, robot, floor=1, pose=Pose(3000, -300, 0), noise=None)
     at_door = World(tiny_plan, robot, floor=1, pose=Pose(5000, -300, 0), noise=None)
-    wall_mm = at_wall.tof_returns(0).mean_mm
-    door_mm = at_door.tof_returns(0).mean_mm
+    wall_mm = at_wall.robot.tof_returns(0).mean_mm
+    door_mm = at_door.robot.tof_returns(0).mean_mm
     assert wall_mm == pytest.approx(850 - 300, rel=0.02)
     assert door_mm - wall_mm == pytest.approx(100, abs=25)
 
@@ -232,6 +232,6 @@ def test_world_scan_uses_the_chip_model(
     tiny_plan: FloorPlan, one_sensor: Callable[..., RobotSpec]
 ) -> None:
     world = World(tiny_plan, one_sensor(yaw_deg=-90), floor=1, pose=Pose(3000, -300, 0))
-    readings = world.scan()
+    readings = world.robot.scan()
     assert len(readings) == 1 and readings[0].status is ReadingStatus.VALID
     assert readings[0].signal_mcps > 1.0 and readings[0].sigma_mm > 0

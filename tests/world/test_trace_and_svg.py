@@ -32,7 +32,7 @@ def test_pass_shows_the_door_recess_on_the_right_sensors(
 ) -> None:
     """Room 202's door (s 5550..6450, recessed 100 mm) on the right, as in seed Figure 3."""
     world, rows = _pass(cs_building, board_robot, steer=True)
-    assert world.collisions == []
+    assert world.robot.collisions == []
     assert rows[-1].s_mm >= 8000
     assert np.diff([r.t_s for r in rows]) == pytest.approx(0.1)
     front_right = [
@@ -48,7 +48,7 @@ def test_open_loop_pass_drifts_into_the_wall(
     cs_building: FloorPlan, board_robot: RobotSpec
 ) -> None:
     world, rows = _pass(cs_building, board_robot, steer=False)
-    assert world.collisions and world.collisions[0].element == "hallway right wall"
+    assert world.robot.collisions and world.robot.collisions[0].element == "hallway right wall"
     assert rows[-1].pose.heading_deg < -3
 
 

@@ -18,17 +18,19 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import itertools
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 from coffeebot.board import Subscription
 from coffeebot.config import RobotConfig
-from coffeebot.errors import DeliveryError
-from coffeebot.floorplan import FloorPlan
+from coffeebot.errors import ConfigError, DeliveryError
+from coffeebot.floorplan import FloorPlan, ParkingSpot
 from coffeebot.messages import (
     CURRENT_STATE,
     DELIVERY_STATUS,
     ELEVATOR_REQUEST,
     ELEVATOR_STATE,
+    LEASE_NEED,
+    LEASE_STATE,
     MOTION_STATUS,
     MOVE_INSTRUCTION,
     OPERATOR_EVENT,
@@ -38,18 +40,20 @@ from coffeebot.messages import (
     DeliveryUpdate,
     ElevatorRequest,
     ElevatorState,
+    LeaseNeed,
     MotionState,
     MoveInstruction,
     OperatorEvent,
     OrderDispatch,
     PlannedRoute,
     PoseEstimate,
+    SharedPlace,
     StopCause,
 )
 from coffeebot.modules.base import Module, ModuleContext
 from coffeebot.navigation.lifecycle import DeliveryLifecycle
 from coffeebot.navigation.path import route_legs
-from coffeebot.navigation.route import ElevatorRide, Move, Route, RoutePlanner
+from coffeebot.navigation.route import ElevatorRide, Lease, Move, Route, RoutePlanner, Step
 
 POLL_S = 0.2
 """How often waits re-check the board when nothing new arrives."""
@@ -69,26 +73,52 @@ class DeliveryAborted(DeliveryError):
         self.problem = problem
 
 
+def parking_spot(config: RobotConfig, plan: FloorPlan) -> ParkingSpot:
+    """A fleet robot's own place to wait in the base room (``[fleet] parking_spot``)."""
+    loc = plan.find_room(config.navigation.base_room)
+    spots = loc.floor.parking
+    index = config.fleet.parking_spot
+    if index >= len(spots):
+        raise ConfigError(
+            f"[fleet] parking_spot = {index}, but floor {loc.floor.level} of {plan.name!r} has "
+            f"{len(spots)} parking spot(s): add [[floors.parking]] entries, one per robot"
+        )
+    return spots[index]
+
+
 class NavigationModule(Module):
     name = "navigation"
-    inputs = (ORDER_DISPATCH, OPERATOR_EVENT, CURRENT_STATE, MOTION_STATUS, ELEVATOR_STATE)
-    outputs = (MOVE_INSTRUCTION, DELIVERY_STATUS, ELEVATOR_REQUEST, ROUTE)
+    inputs = (
+        ORDER_DISPATCH,
+        OPERATOR_EVENT,
+        CURRENT_STATE,
+        MOTION_STATUS,
+        ELEVATOR_STATE,
+        LEASE_STATE,
+    )
+    outputs = (MOVE_INSTRUCTION, DELIVERY_STATUS, ELEVATOR_REQUEST, ROUTE, LEASE_NEED)
 
     def __init__(self, config: RobotConfig, plan: FloorPlan) -> None:
         self.config = config
         self.nav = config.navigation
+        self.fleet = config.fleet.enabled
         self.planner = RoutePlanner(
             plan,
             config.motion,
             config.navigation,
             config.geometry.width_mm,
             pivot_mm=config.motor.axle_x_mm,
+            parking=parking_spot(config, plan) if self.fleet else None,
         )
         self._ids = itertools.count(1)
         self._handled: set[str] = set()
         self._life: DeliveryLifecycle | None = None
         self._events: dict[str, asyncio.Event] = {}
         self._task: asyncio.Task[None] | None = None
+        self._asked: set[SharedPlace] = set()
+        """Shared places asked for (a fleet's) and not given back."""
+        self._holding: set[SharedPlace] = set()
+        """...and of those, the ones granted."""
 
     # --- board helpers ---------------------------------------------------------------------
 
@@ -192,12 +222,42 @@ class NavigationModule(Module):
         if life is not None and not life.final:
             self._report(ctx, life.progress(detail, problem))
 
-    async def _drive(self, ctx: ModuleContext, route: Route) -> None:
-        for step in route.steps:
+    async def _drive(self, ctx: ModuleContext, steps: Sequence[Step]) -> None:
+        for step in steps:
             if isinstance(step, ElevatorRide):
                 await self._ride(ctx, step)
+            elif isinstance(step, Lease):
+                await self._lease(ctx, step)
             else:
                 await self._move(ctx, step)
+
+    # --- shared places (a fleet's) ---------------------------------------------------------
+
+    async def _lease(self, ctx: ModuleContext, lease: Lease) -> None:
+        """Ask for a shared place and wait until it is this robot's, or give it back."""
+        ctx.board.publish(LEASE_NEED, LeaseNeed(place=lease.place, want=lease.want))
+        if not lease.want:
+            self._asked.discard(lease.place)
+            self._holding.discard(lease.place)
+            return
+        self._asked.add(lease.place)
+
+        def held() -> bool:
+            state = ctx.board.latest(LEASE_STATE)
+            return state is not None and state.msg.holds(lease.place)
+
+        if held():
+            self._holding.add(lease.place)
+            return
+        what = lease.place.replace("_", " ")
+        self._progress(ctx, f"waiting for the {what}: another robot is using it")
+        if not await self._wait_for(ctx, held, self.nav.blocked_give_up_s):
+            raise DeliveryAborted(
+                f"the {what} stayed taken for {self.nav.blocked_give_up_s:.0f} s",
+                DeliveryProblem.BLOCKED,
+            )
+        self._holding.add(lease.place)
+        self._progress(ctx, f"the {what} is free: going on")
 
     # --- elevator --------------------------------------------------------------------------
 
@@ -241,6 +301,8 @@ class NavigationModule(Module):
         cfg = self.nav.elevator
         here, there = ride.from_floor, ride.to_floor
         await self._move(ctx, ride.face_doors)
+        if self.fleet:
+            await self._lease(ctx, Lease("elevator", True))
         life = self._life
         if life is not None and not life.final:
             self._report(
@@ -278,6 +340,8 @@ class NavigationModule(Module):
         for move in ride.exit:
             await self._move(ctx, move)
         ctx.board.publish(ELEVATOR_REQUEST, ElevatorRequest(action="release", floor=there))
+        if self.fleet:
+            await self._lease(ctx, Lease("elevator", False))
 
     # --- deliveries ------------------------------------------------------------------------
 
@@ -301,6 +365,8 @@ class NavigationModule(Module):
 
     async def _serve(self, ctx: ModuleContext, life: DeliveryLifecycle) -> None:
         nav = self.nav
+        if self.fleet:  # from its parking spot onto the loading spot, which it then holds
+            await self._drive(ctx, self.planner.loading())
         self._report(ctx, life.ready_for_cup())
         if not await self._wait_for(ctx, self._event("cup_loaded").is_set, nav.loading_timeout_s):
             self._report(
@@ -313,7 +379,7 @@ class NavigationModule(Module):
             return
         route = self._route_to(ctx, life.room)  # raises before leaving if the room is unknown
         self._report(ctx, life.cup_loaded())
-        await self._drive(ctx, route)
+        await self._drive(ctx, route.steps)
         status = ctx.board.latest(MOTION_STATUS)
         detail = f"at the door of {life.room}"
         if status is not None and status.msg.remaining_mm is not None:
@@ -361,11 +427,15 @@ class NavigationModule(Module):
             self._task = None
         if life.left_base:
             await self._go_home(ctx)
+        elif "loading_spot" in self._holding:  # a fleet's robot that got no cup
+            await self._drive(ctx, self.planner.back_to_spot())
+        for place in list(self._asked):  # a wait for a place that ended with the order
+            await self._lease(ctx, Lease(place, False))
         self._life = None
 
     async def _go_home(self, ctx: ModuleContext) -> None:
         try:
-            await self._drive(ctx, self._route_to(ctx, None))
+            await self._drive(ctx, self._route_to(ctx, None).steps)
         except DeliveryAborted as exc:
             ctx.log.error("could not return to base: %s", exc)
         self._instruct(ctx, MoveInstruction(action="stop", detail="parked"))

@@ -2,8 +2,8 @@
 
 Motion follows instructions, not lines; this is for people (the live map draws it, the
 customer's arrival estimate measures it). A lane-following move ends at its target on its
-lane, a drive ends at its point, turns add nothing, and an elevator ride starts a new leg on
-the floor it arrives at.
+lane, a drive ends at its point, turns and leases add nothing, and an elevator ride starts a
+new leg on the floor it arrives at.
 """
 
 from __future__ import annotations
@@ -41,6 +41,6 @@ def route_legs(
             # The car rides straight up or down: the next floor's leg starts where it stood.
             legs.append((step.to_floor, [legs[-1][1][-1]]))
             add(step.exit)
-        else:
+        elif isinstance(step, Move):
             add([step])
     return [RouteLeg(floor=level, points=points) for level, points in legs]

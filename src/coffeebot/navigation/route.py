@@ -15,15 +15,23 @@ The robot turns on the spot about its driven axle, ``pivot_mm`` ahead of the bod
 so a quarter turn carries the centre that far along the hallway. Where a route turns to go
 through a door (into a room, into the elevator car) it stops that much short of the door, so
 the turn leaves the centre on the door's axis rather than aimed past a jamb.
+
+A robot of a fleet (``parking`` given) parks at its own spot in the base room, not on the
+loading spot, and passes the base room's door and the loading spot behind it as a shared
+place: the route says where it must hold the place alone (:class:`Lease` steps), from
+before it turns in at the door to when it stands at its spot, and from when it leaves its
+spot to when it is out in the hallway. (The elevator is the other shared place; its ride
+holds it, see the navigation module.)
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 from coffeebot.config import MotionConfig, NavigationConfig
-from coffeebot.floorplan import Door, Floor, FloorPlan
-from coffeebot.messages import MoveInstruction
+from coffeebot.floorplan import Door, Floor, FloorPlan, ParkingSpot
+from coffeebot.messages import MoveInstruction, SharedPlace
 
 
 @dataclass(frozen=True)
@@ -44,7 +52,15 @@ class ElevatorRide:
     exit: list[Move]
 
 
-Step = Move | ElevatorRide
+@dataclass(frozen=True)
+class Lease:
+    """Hold ``place`` alone from here (``want``), or give it back: only in a fleet."""
+
+    place: SharedPlace
+    want: bool
+
+
+Step = Move | ElevatorRide | Lease
 
 
 @dataclass(frozen=True)
@@ -73,12 +89,15 @@ class RoutePlanner:
         nav: NavigationConfig,
         body_width_mm: float,
         pivot_mm: float = 0.0,
+        parking: ParkingSpot | None = None,
     ) -> None:
+        """``parking``: this robot's spot in the base room, if it is one of a fleet."""
         self.plan = plan
         self.motion = motion
         self.nav = nav
         self.body_width_mm = body_width_mm
         self.pivot_mm = pivot_mm
+        self.parking = parking
 
     # --- places ----------------------------------------------------------------------------
 
@@ -180,6 +199,9 @@ class RoutePlanner:
             s = leave.at_mm
             lane = self.lane_mm(floor, self._direction(floor, s, goal))
             steps.append(self._drive_to(floor, floor.from_hallway(s, lane), f"out of {leave.room}"))
+            if self.parking is not None and leave.room == self.nav.base_room:
+                # A fleet's robot leaves from the loading spot (:meth:`loading`), holding it.
+                steps.append(Lease("loading_spot", False))
         if goal.floor != floor_level:
             steps.extend(self._to_elevator(floor, s))
             steps.append(self._ride(floor_level, goal.floor, goal))
@@ -268,8 +290,70 @@ class RoutePlanner:
             )
         )
         if goal.inside:
+            spot = self.parking
+            if spot is not None:
+                steps.append(Lease("loading_spot", True))
             steps.append(self._turn(floor, self.facing_deg(floor, door), f"facing {door.room}"))
-            point = self.inside_point(floor, door, door.recess_mm + self.nav.base_depth_mm)
-            steps.append(self._drive_to(floor, point, f"into {door.room}"))
-            steps.append(self._turn(floor, self.facing_deg(floor, door) + 180.0, "parked"))
+            steps.append(self.to_loading_spot(floor, door, f"into {door.room}"))
+            if spot is None:
+                steps.append(self._turn(floor, self.facing_deg(floor, door) + 180.0, "parked"))
+            else:
+                steps += self._loading_to_spot(floor, door, spot)
+                steps.append(Lease("loading_spot", False))
         return steps
+
+    # --- a fleet's base room ----------------------------------------------------------------
+    # Inside the base room a robot goes between the loading spot and its parking spot along
+    # the door's axis to the spot's depth, then straight across: between the parked robots,
+    # never diagonally past them. A turn on the spot swings the centre about the axle, so the
+    # point before a turn onto the axis is set off by ``pivot_mm`` to end on it.
+
+    def _axis_at(self, floor: Floor, door: Door, spot: ParkingSpot) -> tuple[float, float]:
+        """The door's axis at the parking spot's depth."""
+        _, depth = floor.to_hallway(spot.x_mm, spot.y_mm)
+        return floor.from_hallway(door.at_mm, depth)
+
+    def _loading_to_spot(self, floor: Floor, door: Door, spot: ParkingSpot) -> list[Move]:
+        return [
+            self._drive_to(floor, self._axis_at(floor, door, spot), "into the room"),
+            self._drive_to(floor, (spot.x_mm, spot.y_mm), "to its parking spot"),
+            self._turn(floor, spot.heading_deg, "parked"),
+        ]
+
+    def _spot_to_loading(self, floor: Floor, door: Door) -> list[Move]:
+        """From the parking spot onto the loading spot, facing out of the room."""
+        spot = self.parking
+        assert spot is not None
+        ax, ay = self._axis_at(floor, door, spot)
+        out = self.facing_deg(floor, door) + 180.0
+        across = math.atan2(ay - spot.y_mm, ax - spot.x_mm)
+        # Arriving on the axis heading ``across``, the quarter turn to ``out`` about the axle
+        # leaves the centre ``pivot_mm`` further along ``across``: stop that much short.
+        stop = (ax - self.pivot_mm * math.cos(across), ay - self.pivot_mm * math.sin(across))
+        return [
+            self._drive_to(floor, stop, "to the door's axis"),
+            self._turn(floor, out, "facing the door"),
+            self.to_loading_spot(floor, door),
+        ]
+
+    def to_loading_spot(
+        self, floor: Floor, door: Door, detail: str = "to the loading spot"
+    ) -> Move:
+        """Where the cup is loaded: ``base_depth_mm`` behind the base room's door line."""
+        point = self.inside_point(floor, door, door.recess_mm + self.nav.base_depth_mm)
+        return self._drive_to(floor, point, detail)
+
+    def loading(self) -> list[Step]:
+        """From a fleet robot's parking spot onto the loading spot, facing out, holding it:
+        where it waits for the cup, and where a route out of the base room starts."""
+        base = self.base
+        floor = self.plan.floor(base.floor)
+        return [Lease("loading_spot", True), *self._spot_to_loading(floor, base.door)]
+
+    def back_to_spot(self) -> list[Step]:
+        """From the loading spot back to its parking spot (no cup came), giving it back."""
+        base = self.base
+        floor = self.plan.floor(base.floor)
+        assert self.parking is not None
+        moves = self._loading_to_spot(floor, base.door, self.parking)
+        return [*moves, Lease("loading_spot", False)]

@@ -16,6 +16,7 @@ from coffeebot.board import Board
 from coffeebot.clock import Clock
 from coffeebot.config import RobotConfig
 from coffeebot.daemon import Daemon
+from coffeebot.fleet.mosquitto import Credentials
 from coffeebot.floorplan import FloorPlan
 from coffeebot.hardware.i2c import I2CBus
 from coffeebot.hardware.selfcheck import service_check
@@ -26,6 +27,7 @@ from coffeebot.modules.base import Module
 from coffeebot.modules.collision import CollisionModule
 from coffeebot.modules.door import DoorModule
 from coffeebot.modules.elevator import ElevatorInterface, ElevatorModule
+from coffeebot.modules.fleet_bridge import FleetBridge
 from coffeebot.modules.motion import MotionModule
 from coffeebot.modules.motor_driver import MotorDriver
 from coffeebot.modules.navigation import NavigationModule
@@ -50,14 +52,21 @@ class Runtime:
     """The configuration the modules were built from (in simulation, with the pty ports)."""
     plan: FloorPlan
     board: Board
-    store: OrderStore
-    orders: OrdersModule
+    store: OrderStore | None
+    """The robot's order database; None in a fleet, where the dispatcher keeps the orders."""
+    orders: OrdersModule | None
     self_check: SelfCheck
     daemon: Daemon = field(init=False)
     """Made last, from every module; modules that need it call :meth:`request_stop`."""
 
     def request_stop(self, reason: str) -> None:
         self.daemon.request_stop(reason)
+
+    def own_orders(self) -> OrdersModule:
+        """The robot's own order queue: a single robot's (in a fleet the dispatcher's)."""
+        if self.orders is None:
+            raise ValueError("this robot is part of a fleet: the dispatcher keeps its orders")
+        return self.orders
 
     def module(self, name: str) -> Module:
         return self.daemon.states[name].module
@@ -100,7 +109,7 @@ def assemble(
     *,
     clock: Clock,
     open_i2c: Callable[[], I2CBus],
-    store: OrderStore,
+    store: OrderStore | None,
     open_serial: Opener = open_port,
     kernel_hz: Callable[[], int | None] | None = None,
     start: PoseEstimate | None = None,
@@ -108,21 +117,31 @@ def assemble(
     true_pose: TruePose | None = None,
     extra: ExtraModules | None = None,
     web: bool = True,
+    broker_login: Credentials | None = None,
 ) -> Runtime:
     """Build the board and every module from ``config`` and ``plan``.
 
     ``store``: the order database (the caller opens it: on the robot the board file's path,
-    in simulation a temporary one); ``open_serial``: opens the serial ports by their names
-    in the config (pyserial on the robot, the simulated lines in simulation);
+    in simulation a temporary one). In a fleet (``[fleet] broker``) there is none: the fleet
+    bridge takes the orders module's place, logging in with ``broker_login`` (default: the
+    environment's), and the web UI is the dispatcher's. ``open_serial``: opens the serial
+    ports by their names in the config (pyserial on the robot, the simulated lines in
+    simulation);
     ``kernel_hz``: the I2C bus clock the kernel runs, for the self-check (a real bus only);
     ``elevator``: the building's elevator, if the robot can talk to it; ``true_pose``: a pose
     the live map draws beside the estimate (the simulator's truth); ``web``: serve the UI.
     """
     board = Board(ALL_TOPICS, clock=clock)
-    orders = OrdersModule(store, config.store)
     modules = robot_modules(config, plan, open_i2c, open_serial, start)
     modules += navigation_modules(config, plan, elevator)
-    modules.append(orders)
+    orders: OrdersModule | None = None
+    if config.fleet.enabled:
+        modules.append(FleetBridge(config, broker_login))
+    elif store is None:
+        raise ValueError("a robot outside a fleet keeps its own orders: give it a store")
+    else:
+        orders = OrdersModule(store, config.store)
+        modules.append(orders)
     runtime = Runtime(
         config=config,
         plan=plan,
@@ -131,7 +150,7 @@ def assemble(
         orders=orders,
         self_check=service_check(config, open_i2c, kernel_hz, open_serial, clock),
     )
-    if web:
+    if web and orders is not None:
         modules.append(
             web_module(
                 config,

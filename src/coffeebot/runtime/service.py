@@ -60,7 +60,8 @@ async def serve(
                 max_loop_lag_s=watchdog.max_loop_lag_s,
             )
     finally:
-        runtime.store.close()
+        if runtime.store is not None:
+            runtime.store.close()
 
 
 class StopAfter(Module):

@@ -20,6 +20,7 @@ from coffeebot.modules.base import Module
 from coffeebot.runtime.assemble import Runtime, assemble
 from coffeebot.sim.rundir import run_directory
 from coffeebot.sim.simulation import SimElevatorLink, SimSetup, Simulation
+from coffeebot.sim.stepper import SimWorld
 from coffeebot.sim.store import SimStore
 from coffeebot.sim.world import RobotSpec, World
 from coffeebot.sim.world.elevator import SimElevator
@@ -34,7 +35,7 @@ SimExtraModules = Callable[[Runtime, Simulation], Sequence[Module]]
 def true_pose(sim: Simulation) -> Callable[[], MapPose]:
     def pose() -> MapPose:
         with sim.lock:
-            t, level = sim.world.pose, sim.world.floor_level
+            t, level = sim.robot.pose, sim.robot.floor_level
         return MapPose(x_mm=t.x_mm, y_mm=t.y_mm, heading_deg=t.heading_deg, floor=level)
 
     return pose
@@ -78,7 +79,8 @@ async def build_sim(
         store = SimStore(
             state_dir / "orders.sqlite3", busy_timeout_s=config.store.busy_timeout_s, clock=clock
         )
-        sim = Simulation(world, config, clock, setup.faults, store=store)
+        shared = SimWorld(world, clock)
+        sim = Simulation(shared, world.robot, config, setup.faults, store=store)
         runtime = assemble(
             sim.config,
             plan,
@@ -93,7 +95,7 @@ async def build_sim(
             web=web,
         )
         # The world runs from before the daemon's self-check until after its shutdown.
-        world_task = asyncio.create_task(sim.run(), name="simulated world")
+        world_task = asyncio.create_task(shared.run(), name="simulated world")
         world_task.add_done_callback(functools.partial(_world_ended, runtime))
         try:
             yield runtime, sim
@@ -101,7 +103,7 @@ async def build_sim(
             world_task.cancel()
             with contextlib.suppress(asyncio.CancelledError):
                 await world_task
-            sim.close()
+            shared.close()
             store.close()
 
 

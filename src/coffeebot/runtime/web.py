@@ -15,7 +15,7 @@ from coffeebot.messages import CURRENT_STATE, Health
 from coffeebot.modules.base import Module
 from coffeebot.orders import Orders
 from coffeebot.web import RoomChoice, WebDeps, WebModule
-from coffeebot.web.livemap import MapPose
+from coffeebot.web.livemap import MapPose, PoseSource
 
 TruePose = Callable[[], MapPose]
 """Where the robot really is (the simulator's ground truth), for the live map."""
@@ -68,8 +68,10 @@ def web_module(
     modules: Callable[[], Sequence[Module]],
     health: Callable[[], Sequence[Health]],
     true_pose: TruePose | None = None,
+    poses: PoseSource | None = None,
 ) -> WebModule:
-    """The web UI: order form for the plan's offices, floor maps, the inspector."""
+    """The web UI: order form for the plan's offices, floor maps, the inspector. The map
+    draws ``poses`` (a fleet's robots), by default this robot's estimate and ``true_pose``."""
     return WebModule(
         WebDeps(
             board=board,
@@ -79,7 +81,7 @@ def web_module(
             operator_token=os.environ.get(config.web.operator_token_env),
             modules=modules,
             floor_svg=floor_svgs(plan),
-            poses=pose_source(board, true_pose),
+            poses=poses or pose_source(board, true_pose),
             sensors=config.tof.sensors,
             geometry=config.geometry,
             health=health,

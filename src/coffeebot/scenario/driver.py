@@ -185,7 +185,7 @@ class ScenarioModule(Module):
     def _odometer(self) -> None:
         """Ground-truth distance driven and time spent moving, for the mean speed."""
         with self.sim.lock:
-            pose, t = self.sim.world.pose, self.sim.t_s
+            pose, t = self.sim.robot.pose, self.sim.t_s
         last = self.log.last_pose
         if last is not None:
             step = math.dist(last[:2], pose[:2])
@@ -245,10 +245,10 @@ class ScenarioModule(Module):
         """How far along the hallway the robot stands from the door's centre (truth)."""
         floor, door = self.plan.find_room(room)
         with self.sim.lock:
-            world = self.sim.world
-            if world.floor_level != floor.level:
+            robot = self.sim.robot
+            if robot.floor_level != floor.level:
                 return None
-            s, _ = floor.to_hallway(world.pose.x_mm, world.pose.y_mm)
+            s, _ = floor.to_hallway(robot.pose.x_mm, robot.pose.y_mm)
         return abs(s - door.at_mm)
 
     def report(self) -> ScenarioReport:

@@ -120,11 +120,11 @@ def world_facts(
     """What only the simulator knows: contacts, where the robot ended, the least clearance
     and the faults it injected."""
     with sim.lock:
-        world = sim.world
-        contacts = [Contact.of(c) for c in world.collisions]
-        pose = world.pose
+        robot = sim.robot
+        contacts = [Contact.of(c) for c in robot.collisions]
+        pose = robot.pose
         final = FinalPose(
-            floor=world.floor_level,
+            floor=robot.floor_level,
             x_mm=round(pose.x_mm),
             y_mm=round(pose.y_mm),
             heading_deg=round(pose.heading_deg, 1),

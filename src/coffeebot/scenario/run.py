@@ -34,7 +34,7 @@ async def run_scenario(
     def add_driver(runtime: Runtime, sim: Simulation) -> list[Module]:
         driver.append(
             ScenarioModule(
-                scenario, plan, runtime.config, sim, runtime.orders, runtime.request_stop
+                scenario, plan, runtime.config, sim, runtime.own_orders(), runtime.request_stop
             )
         )
         return [*driver]

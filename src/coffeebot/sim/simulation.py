@@ -1,46 +1,42 @@
-"""The simulated robot under the daemon: one :class:`World` behind the simulated buses.
+"""A simulated robot under its daemon: its buses and devices, wired to its body in the world.
 
-The world answers the simulated chips from the I2C worker thread (reading the VL53L1X
-registers) while :meth:`Simulation.run` steps it on the event loop, so every access goes
-through :attr:`Simulation.lock`. Time is the daemon's clock: the world is stepped to
-``clock.now()``, and the chips read the same clock. On the simulator's
-:class:`~coffeebot.clock.SteppedClock` the world steps only when the daemon has settled
-(:mod:`coffeebot.lockstep`), so a run depends on its seed alone, not on the machine's load.
-The two UART devices sit on in-process serial lines (:meth:`Simulation.open_serial`) whose
-read timeouts are simulated time, and answer once per step.
+Each :class:`Simulation` is one robot of a :class:`~coffeebot.sim.stepper.SimWorld` (one
+for a single robot, several for a fleet): the simulated I2C bus with a VL53L1X per channel,
+and the DWM1001 tag and the motor controller on in-process serial lines
+(:meth:`Simulation.open_serial`) whose read timeouts are simulated time. The world answers
+the chips from the I2C worker thread while the stepper moves it on the event loop, so every
+access goes through the world's lock (:meth:`Simulation.world_time`), which also counts the
+CPU the world costs (``cpu_s``), so benchmarks can tell the robot's share of a simulated
+run from the simulator's.
 
-Reachable from outside as ``Runtime.sim``: ``world`` for ground truth (reports, the live
-map), :meth:`place_robot` for what moves the robot other than its wheels (the elevator).
-The CPU time the world itself costs (stepping, ray casts for the sensors, the UWB and motor
-samples) is counted in :attr:`Simulation.cpu_s`, so that benchmarks can tell the robot's
-share of a simulated run from the simulator's.
+Reachable from outside as ``Runtime.sim``: ``robot`` for ground truth (reports, the live
+map), :meth:`place_robot` for what moves the robot other than its wheels.
 """
 
 from __future__ import annotations
 
-import asyncio
 import contextlib
 import math
 import threading
-import time
-from collections.abc import Iterator, Sequence, Sized
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from coffeebot.clock import Clock, SteppedClock
+from coffeebot.clock import Clock
 from coffeebot.config import RobotConfig
 from coffeebot.floorplan import FloorPlan
 from coffeebot.hardware.serial_port import SerialPort
 from coffeebot.hardware.vl53l1x import SpadRoi
-from coffeebot.lockstep import Lockstep
 from coffeebot.messages import ElevatorRequest, ElevatorState, UwbFix
 from coffeebot.sim.dwm1001 import SimDwm1001
 from coffeebot.sim.faults import Fault, FaultRecord
 from coffeebot.sim.i2c import make_tof_hardware
 from coffeebot.sim.motor_controller import DriveSample, SimMotorController
 from coffeebot.sim.serial_line import MemoryLine
+from coffeebot.sim.stepper import SimWorld
 from coffeebot.sim.store import SimStore
 from coffeebot.sim.world import ObstacleSpec, Pose, World
 from coffeebot.sim.world.tof import Returns
+from coffeebot.sim.world.world import WorldRobot
 
 
 @dataclass
@@ -60,14 +56,16 @@ class WorldDrive:
     def command(
         self, left_mm_s: float, right_mm_s: float, now: float, until: float = math.inf
     ) -> None:
-        with self.sim.world_time() as world:
-            world.command_wheels(left_mm_s, right_mm_s, until_s=self.sim.world_t(until))
+        robot = self.sim.robot
+        with self.sim.world_time():
+            robot.command_wheels(left_mm_s, right_mm_s, until_s=self.sim.shared.world_t(until))
 
     def sample(self, now: float) -> DriveSample:
-        with self.sim.world_time() as world:
-            left, right = world.encoder_ticks
-            v_left, v_right = world.wheel_speeds_mm_s
-            return DriveSample(left, right, v_left, v_right, world.gyro_z_dps())
+        robot = self.sim.robot
+        with self.sim.world_time():
+            left, right = robot.encoder_ticks
+            v_left, v_right = robot.wheel_speeds_mm_s
+            return DriveSample(left, right, v_left, v_right, robot.gyro_z_dps())
 
 
 @dataclass(frozen=True)
@@ -93,27 +91,23 @@ def demo_setup(plan: FloorPlan, speed: float = 1.0) -> SimSetup:
 
 
 class Simulation:
-    """The world, the simulated I2C bus, DWM1001 and motor controller wired to it."""
+    """One robot's simulated I2C bus, DWM1001 and motor controller, wired to its body."""
 
     def __init__(
         self,
-        world: World,
+        shared: SimWorld,
+        robot: WorldRobot,
         config: RobotConfig,
-        clock: Clock,
         faults: Sequence[Fault] = (),
         store: SimStore | None = None,
     ) -> None:
-        self.world = world
+        self.shared = shared
+        self.robot = robot
         self.store = store
         """The order database the store faults act on (None: a run without one)."""
-        self.clock = clock
-        self.lock = threading.RLock()
         self.faults = [fault.model_copy() for fault in faults]  # each run starts afresh
         self.truth = TruthLog()
-        self.cpu_s = 0.0
-        """CPU seconds spent in the world, on whichever thread asked (see :meth:`world_time`)."""
-        self._origin = clock.now()
-        """The world's t = 0 on the clock: the robot is switched on (its self-check included)."""
+        clock, world = shared.clock, shared.world
         by_id = sorted(config.tof.sensors, key=lambda s: s.id)
         self._index = {s.channel: i for i, s in enumerate(by_id)}
         self.sensor_channel = {s.id: s.channel for s in by_id}
@@ -123,18 +117,16 @@ class Simulation:
             mux_address=config.i2c.mux_address,
             clock=clock.now,
             noise=world.noise,
-            seed=world.seed,
+            seed=world.seed + 1000 * len(shared.robots),
         )
-        if isinstance(clock, SteppedClock):
-            self.lockstep = clock.lockstep
-        else:  # the machine's clock (a benchmark of the daemon's own timing): never engaged
-            self.lockstep = Lockstep(clock.now)
+        lockstep = shared.lockstep
+        prefix = f"{robot.name}/" if shared.robots else ""
         # Polled once per step (:meth:`advance`), never in threads of their own.
         self.uwb = SimDwm1001(
-            fix_fn=self._uwb_fix, clock=clock.now, line=MemoryLine("uwb", self.lockstep)
+            fix_fn=self._uwb_fix, clock=clock.now, line=MemoryLine(f"{prefix}uwb", lockstep)
         )
         self.motor = SimMotorController(
-            WorldDrive(self), clock=clock.now, line=MemoryLine("motor", self.lockstep)
+            WorldDrive(self), clock=clock.now, line=MemoryLine(f"{prefix}motor", lockstep)
         )
         self._lines = {device.port: device.line for device in (self.uwb, self.motor)}
         self.config = config.model_copy(
@@ -144,6 +136,34 @@ class Simulation:
             }
         )
         """``config`` with the serial ports pointing at the simulated devices."""
+        shared.robots.append(self)
+
+    # --- the shared world, as seen from this robot -------------------------------------------
+
+    @property
+    def world(self) -> World:
+        return self.shared.world
+
+    @property
+    def clock(self) -> Clock:
+        return self.shared.clock
+
+    @property
+    def lock(self) -> threading.RLock:
+        return self.shared.lock
+
+    @property
+    def t_s(self) -> float:
+        """Simulated seconds since the world started (the world's own time)."""
+        return self.shared.world.t_s
+
+    def world_time(self) -> contextlib.AbstractContextManager[World]:
+        return self.shared.world_time()
+
+    def world_t(self, clock_t: float) -> float:
+        return self.shared.world_t(clock_t)
+
+    # --- this robot ---------------------------------------------------------------------------
 
     def open_serial(self, url: str, baudrate: int, timeout_s: float) -> SerialPort:
         """Opens the simulated devices' ports, as ``open_port`` opens real ones."""
@@ -152,61 +172,16 @@ class Simulation:
             raise OSError(f"could not open port {url}: not a simulated device's port")
         return line.open(url, baudrate, timeout_s)
 
-    @property
-    def t_s(self) -> float:
-        """Simulated seconds since the world module started (the world's own time)."""
-        return self.world.t_s
-
     def close(self) -> None:
         self.uwb.close()
         self.motor.close()
 
-    async def run(self, step_s: float = 0.005) -> None:
-        """Move simulated time on and step the world, every ``step_s`` of simulated time,
-        for as long as the daemon runs (from before its self-check to after its shutdown).
-
-        On a :class:`SteppedClock` (the simulator's) this is the clock's only advancer. Before
-        each step it waits until the daemon has settled: the event loop has nothing else to
-        run and every worker thread has finished or waits for a later step
-        (:mod:`coffeebot.lockstep`); the results of the threads' calls are handed over in the
-        order the calls were made. So the daemon's reaction to a step takes no simulated time
-        and a run is the same on a busy machine as on an idle one, only slower. The steps are
-        paced to the clock's speed in the machine's time as long as the machine keeps up (a
-        late step is not made up for by a burst). On the machine's clock (a benchmark of the
-        daemon's own timing) the world just steps as time goes.
-        """
-        clock = self.clock
-        if not isinstance(clock, SteppedClock):
-            while True:
-                self.advance()
-                await clock.sleep(step_s)
-        loop = asyncio.get_running_loop()
-        wall_step = step_s / clock.speed
-        self.lockstep.engage(True)
-        try:
-            due = time.monotonic()
-            while True:
-                await settle(loop, self.lockstep)
-                # One step is one event for the worker threads: a read that times out at
-                # this step sees the bytes the step brings, whichever thread wakes first.
-                with self.lockstep.lock:
-                    clock.advance(step_s)
-                    self.advance()
-                if wall_step > 0:
-                    due = max(due + wall_step, time.monotonic() - wall_step)
-                    if due > time.monotonic():
-                        await asyncio.sleep(due - time.monotonic())
-        finally:
-            self.lockstep.engage(False)
-
-    def advance(self) -> None:
-        """Step the world to the clock's present, let the UART devices take their turn and
-        apply the faults that are due."""
-        now = self.clock.now()
-        with self.world_time() as world:
-            world.step(now - self._origin - world.t_s)
-            gap = world.clearance_mm()
-            self.truth.min_clearance_mm = min(self.truth.min_clearance_mm, gap)
+    def advance(self, now: float) -> None:
+        """After the world has stepped to ``now``: the run's least clearance, the UART
+        devices' turn, the faults that are due."""
+        with self.world_time():
+            gap = self.robot.clearance_mm()
+        self.truth.min_clearance_mm = min(self.truth.min_clearance_mm, gap)
         self.motor.poll(now)
         self.uwb.poll(now)
         for fault in self.faults:
@@ -214,33 +189,18 @@ class Simulation:
             if record is not None:
                 self.truth.faults.append(record)
 
-    def world_t(self, clock_t: float) -> float:
-        """The world's time at clock time ``clock_t``."""
-        return clock_t - self._origin
-
     def place_robot(self, pose: Pose, floor: int | None = None) -> None:
-        """Move the robot without driving: the start of a run, an elevator ride."""
+        """Move the robot without driving: the start of a run."""
         with self.lock:
-            self.world.place_robot(pose, floor)
-
-    @contextlib.contextmanager
-    def world_time(self) -> Iterator[World]:
-        """The world under the lock, the calling thread's CPU time in it added to ``cpu_s``
-        (``thread_time`` counts no time spent waiting for the lock)."""
-        start = time.thread_time()
-        with self.lock:
-            try:
-                yield self.world
-            finally:
-                self.cpu_s += time.thread_time() - start
+            self.robot.place(pose, floor)
 
     def _tof_returns(self, channel: int, roi: SpadRoi) -> Returns:
-        with self.world_time() as world:
-            return world.tof_returns(self._index[channel], roi)
+        with self.world_time():
+            return self.robot.tof_returns(self._index[channel], roi)
 
     def _uwb_fix(self) -> UwbFix | None:
-        with self.world_time() as world:
-            return world.uwb_fix()
+        with self.world_time():
+            return self.robot.uwb_fix()
 
 
 class SimElevatorLink:
@@ -259,22 +219,3 @@ class SimElevatorLink:
             if self.sim.world.elevator is None:
                 return ElevatorState(car_floor=None, doors="closed", source="none")
             return self.sim.world.elevator.state()
-
-
-async def settle(loop: asyncio.AbstractEventLoop, lockstep: Lockstep) -> None:
-    """Return once nothing in the daemon can happen before simulated time moves on: no task
-    or callback is ready to run (``loop._ready``, CPython's run queue, is the only place
-    that says so) and no worker thread is busy; finished calls' results are handed over
-    meanwhile, in the order the calls were made."""
-    ready: Sized | None = getattr(loop, "_ready", None)
-    if ready is None:
-        raise RuntimeError("the simulator steps time on asyncio's own event loop only")
-    while True:
-        await asyncio.sleep(0)
-        if ready:
-            continue
-        results = lockstep.settle()
-        if not results and not ready:
-            return
-        for deliver in results:
-            deliver()

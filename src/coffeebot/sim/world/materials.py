@@ -31,6 +31,8 @@ DOOR = 0.45
 STEEL = 0.3
 """Brushed stainless steel (elevator car and doors): mostly specular, some diffuse return."""
 DEFAULT = 0.5
+ROBOT_SHELL = 0.6
+"""Another robot's light grey plastic shell, as this robot's sensors see it."""
 
 _ELEMENT_PREFIXES: tuple[tuple[str, float], ...] = (
     ("elevator car", STEEL),

@@ -39,13 +39,13 @@ def hallway_pose(floor: Floor, s_mm: float, d_mm: float) -> Pose:
 def lane_wheel_speeds(world: World, speed_mm_s: float, lane_mm: float) -> tuple[float, float]:
     """Wheel speeds that hold the robot ``lane_mm`` off the hallway axis, travelling towards
     the hallway's end: a ground-truth line follower standing in for navigation and motion."""
-    floor, pose = world.floor, world.pose
+    floor, pose = world.robot.floor, world.robot.pose
     _, d = floor.to_hallway(pose.x_mm, pose.y_mm)
     heading_error = math.radians(
         math.remainder(pose.heading_deg - floor.hallway.heading_deg, 360.0)
     )
     wanted = -_LANE_GAIN * (d - lane_mm)
-    turn = _HEADING_GAIN * (wanted - heading_error) * world.robot.wheel_base_mm / 2
+    turn = _HEADING_GAIN * (wanted - heading_error) * world.robot.spec.wheel_base_mm / 2
     return speed_mm_s - turn, speed_mm_s + turn
 
 
@@ -64,26 +64,26 @@ def hallway_pass(
     Stops early on a collision or after ``max_time_s`` (default: twice the nominal travel
     time plus the time to reach speed).
     """
-    floor = world.floor
-    start_s, lane = floor.to_hallway(world.pose.x_mm, world.pose.y_mm)
+    floor = world.robot.floor
+    start_s, lane = floor.to_hallway(world.robot.pose.x_mm, world.robot.pose.y_mm)
     if max_time_s is None:
         travel = abs(to_s_mm - start_s) / speed_mm_s
-        max_time_s = 2 * travel + speed_mm_s / world.robot.max_accel_mm_s2 + 1.0
+        max_time_s = 2 * travel + speed_mm_s / world.robot.spec.max_accel_mm_s2 + 1.0
     dt = 1.0 / rate_hz
-    collisions = len(world.collisions)
+    collisions = len(world.robot.collisions)
     rows: list[TraceRow] = []
     while world.t_s < max_time_s:
-        pose = world.pose
+        pose = world.robot.pose
         s, d = floor.to_hallway(pose.x_mm, pose.y_mm)
-        rows.append(TraceRow(world.t_s, pose, s, d, tuple(world.scan(setup))))
-        if s >= to_s_mm or len(world.collisions) > collisions:
+        rows.append(TraceRow(world.t_s, pose, s, d, tuple(world.robot.scan(setup))))
+        if s >= to_s_mm or len(world.robot.collisions) > collisions:
             break
         if steer:
-            world.command_wheels(*lane_wheel_speeds(world, speed_mm_s, lane))
+            world.robot.command_wheels(*lane_wheel_speeds(world, speed_mm_s, lane))
         else:
-            world.command_wheels(speed_mm_s, speed_mm_s)
+            world.robot.command_wheels(speed_mm_s, speed_mm_s)
         world.step(dt)
-    world.command_wheels(0.0, 0.0)
+    world.robot.command_wheels(0.0, 0.0)
     return rows
 
 

@@ -1,10 +1,13 @@
-"""The simulated world: one floor plan, obstacles and the robot, stepped by simulated time.
+"""The simulated world: one floor plan, obstacles and robots, stepped by simulated time.
 
-The world owns ground truth and is queried the way devices are: the simulated VL53L1X asks
-for sensor k's reading at the current pose, the simulated motor controller feeds wheel speed
-commands and reads encoder ticks and the gyro, the simulated DWM1001 asks for a UWB fix.
-Nothing here reads the wall clock; whoever owns time calls :meth:`World.step`. Every noise
-source draws from its own generator spawned from one seed, so a run is reproducible and
+The world owns ground truth and is queried the way devices are, through each robot's
+:class:`WorldRobot`: the simulated VL53L1X asks for sensor k's reading at that robot's pose,
+the simulated motor controller feeds wheel speed commands and reads encoder ticks and the
+gyro, the simulated DWM1001 asks for a UWB fix. A world usually holds one robot
+(:attr:`World.robot`); a fleet's holds several, and each one's sensors see the others, whose
+bodies are obstacles like any other (and touching one is a collision). Nothing here reads
+the wall clock; whoever owns time calls :meth:`World.step`. Every noise source draws from its
+own generator spawned from one seed (each robot its own), so a run is reproducible and
 adding queries of one kind does not change the noise of another.
 """
 
@@ -22,7 +25,7 @@ from coffeebot.hardware.vl53l1x import FULL_ROI, SpadRoi
 from coffeebot.messages import AnchorRange, UwbFix
 from coffeebot.sim.world.elevator import SimElevator
 from coffeebot.sim.world.geometry import Surfaces, footprint_contacts
-from coffeebot.sim.world.materials import element_reflectance
+from coffeebot.sim.world.materials import ROBOT_SHELL, element_reflectance
 from coffeebot.sim.world.obstacles import ObstacleSpec, obstacle_surfaces
 from coffeebot.sim.world.robot import BodyState, Pose, RobotBody, RobotSpec
 from coffeebot.sim.world.tof import (
@@ -57,7 +60,7 @@ class UwbModel(BaseModel):
 
 @dataclass(frozen=True)
 class Collision:
-    """The robot's footprint touched something: what, where, and how fast it was going."""
+    """A robot's footprint touched something: what, where, and how fast it was going."""
 
     t_s: float
     floor: int
@@ -70,6 +73,9 @@ class Collision:
 
 
 class World:
+    """The building and what is in it; robots are added with :meth:`add_robot` (the first
+    one by the constructor)."""
+
     def __init__(
         self,
         plan: FloorPlan,
@@ -83,10 +89,12 @@ class World:
         noise: RangingNoise | None = None,
         uwb: UwbModel | None = None,
         elevator: SimElevator | None = None,
+        robot_name: str = "robot",
     ) -> None:
+        """``robot`` stands at ``pose`` on ``floor``, named ``robot_name`` (what another
+        robot's collision with it is called)."""
         self.plan = plan
         self.elevator = elevator
-        self.robot = robot
         self.seed = seed
         self.obstacles = tuple(obstacles)
         for obstacle in self.obstacles:
@@ -94,49 +102,50 @@ class World:
         self.optics = optics or ConeOptics()
         self.noise = RangingNoise() if noise is None else noise
         self.uwb_model = uwb or UwbModel()
-        self.sensors = SensorArray(robot.sensors, self.optics)
-        self._tof_rng, self._gyro_rng, self._uwb_rng, self._slip_rng = (
-            np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(4)
-        )
         self._static: dict[int, Surfaces] = {}
-        reach = max((math.hypot(m.x_mm, m.y_mm) for m in robot.sensors), default=0.0)
-        self._cast_radius = self.optics.max_path_mm + reach
-        self._contact_radius = math.hypot(robot.length_mm, robot.width_mm) / 2 + 1.0
-        self.body = RobotBody(robot, pose)
         self.t_s = 0.0
-        self._command_until = math.inf
-        """The motor controller's watchdog deadline for the wheel set-point (world time)."""
-        self.collisions: list[Collision] = []
         self.obstacle_start_s: list[float | None] = [
             None if o.trigger_mm is not None else 0.0 for o in self.obstacles
         ]
         """World time at which each obstacle's own clock started (None: not triggered yet)."""
-        self._touching: set[str] = set()
-        self._layers: Layers | None = None
-        self._returns: dict[tuple[int, SpadRoi], Returns] = {}
-        self.floor_level = floor
-        self.place_robot(pose, floor)  # starting inside something counts as a collision
-
-    # --- state -----------------------------------------------------------------------------
+        self.robots: list[WorldRobot] = []
+        self.add_robot(robot, floor, pose, robot_name)
 
     @property
-    def floor(self) -> Floor:
-        return self.plan.floor(self.floor_level)
+    def robot(self) -> WorldRobot:
+        """The robot of a single-robot world (a fleet's first)."""
+        return self.robots[0]
 
-    @property
-    def pose(self) -> Pose:
-        """Ground-truth pose of the body centre."""
-        return self.body.pose
+    def add_robot(self, spec: RobotSpec, floor: int, pose: Pose, name: str) -> WorldRobot:
+        """Another robot, standing at ``pose`` on ``floor``; ``name`` is what the others'
+        collisions with it are called."""
+        index = len(self.robots)
+        entropy = self.seed if index == 0 else [self.seed, index]
+        rngs = [np.random.default_rng(s) for s in np.random.SeedSequence(entropy).spawn(4)]
+        robot = WorldRobot(self, spec, floor, pose, name, rngs)
+        self.robots.append(robot)
+        for other in self.robots:
+            other.forget_returns()
+        robot.place(pose, floor)  # starting inside something counts as a collision
+        return robot
 
-    def surfaces(self, t_s: float | None = None) -> Surfaces:
-        """Everything on the current floor now, or at an earlier world time ``t_s`` (the
-        obstacles are functions of their clocks; the elevator is as it is now)."""
-        surfaces = self._static_surfaces(self.floor_level)
+    # --- what is where -----------------------------------------------------------------------
+
+    def surfaces(
+        self, level: int, t_s: float | None = None, without: WorldRobot | None = None
+    ) -> Surfaces:
+        """Everything on floor ``level`` now, or at an earlier world time ``t_s`` (the
+        obstacles are functions of their clocks; the elevator and the robots are as they
+        are now), the robots but ``without`` included."""
+        surfaces = self._static_surfaces(level)
         if self.elevator is not None:
-            surfaces = surfaces + self.elevator.surfaces(self.floor_level)
+            surfaces = surfaces + self.elevator.surfaces(level)
         for i, obstacle in enumerate(self.obstacles):
-            if obstacle.timed and obstacle.floor == self.floor_level:
+            if obstacle.timed and obstacle.floor == level:
                 surfaces = surfaces + self.obstacle_at(i, t_s)
+        for robot in self.robots:
+            if robot is not without and robot.floor_level == level:
+                surfaces = surfaces + robot.outline()
         return surfaces
 
     def obstacle_clock_s(self, index: int, t_s: float | None = None) -> float | None:
@@ -177,54 +186,131 @@ class World:
     # --- time ------------------------------------------------------------------------------
 
     def step(self, dt_s: float) -> None:
-        """Advance simulated time by ``dt_s``: obstacles move, the robot drives, contacts
-        are recorded."""
+        """Advance simulated time by ``dt_s``: obstacles move, the robots drive (one after
+        the other in each physics sub-step, each against where the others are), contacts are
+        recorded."""
         if dt_s <= 0:
             return
         if self.elevator is not None:
-            riding = self.elevator.inside(self.floor_level, *self.pose[:2])
+            riding = [r for r in self.robots if self.elevator.inside(r.floor_level, *r.pose[:2])]
             arrived = self.elevator.step(dt_s)
-            if arrived is not None and riding and arrived != self.floor_level:
-                self.place_robot(self.pose, arrived)
+            if arrived is not None:
+                for robot in riding:
+                    if arrived != robot.floor_level:
+                        robot.place(robot.pose, arrived)
         n = max(1, math.ceil(dt_s / PHYSICS_DT_S - 1e-9))
         h = dt_s / n
         for _ in range(n):
-            if self.t_s >= self._command_until:
-                self.command_wheels(0.0, 0.0)
             self.t_s += h
-            proposed = self.body.propose(h, self._slip_rng)
-            contacts = self._contacts(proposed.x, proposed.y, proposed.theta)
-            if contacts:
-                self._record_contacts(contacts)
-                self.body.stall()
-            else:
-                self.body.state = proposed
-                if self._touching:
-                    clear_of = self._contacts(proposed.x, proposed.y, proposed.theta, _RELEASE_MM)
-                    self._touching &= clear_of.keys()
+            for robot in self.robots:
+                robot.drive(h)
             self._fire_triggers()
-        self._forget_returns()
+        for robot in self.robots:
+            robot.forget_returns()
 
     def _fire_triggers(self) -> None:
-        """Start the clock of every obstacle whose trigger point the robot has come close to."""
-        s = self.body.state
+        """Start the clock of every obstacle whose trigger point a robot has come close to."""
         for i, obstacle in enumerate(self.obstacles):
             if self.obstacle_start_s[i] is not None or obstacle.trigger_mm is None:
                 continue
             at = obstacle.trigger_at or (obstacle.x_mm, obstacle.y_mm)
-            near = math.dist(at, (s.x, s.y)) <= obstacle.trigger_mm
-            if near and obstacle.floor == self.floor_level:
-                self.obstacle_start_s[i] = self.t_s
+            for robot in self.robots:
+                s = robot.body.state
+                near = math.dist(at, (s.x, s.y)) <= obstacle.trigger_mm
+                if near and obstacle.floor == robot.floor_level:
+                    self.obstacle_start_s[i] = self.t_s
+                    break
 
-    def place_robot(self, pose: Pose, floor: int | None = None) -> None:
+
+class WorldRobot:
+    """One robot in the world: its body, the floor it is on, what it touched, and what its
+    devices measure (ToF returns, encoders, gyro, UWB)."""
+
+    def __init__(
+        self,
+        world: World,
+        spec: RobotSpec,
+        floor: int,
+        pose: Pose,
+        name: str,
+        rngs: list[np.random.Generator],
+    ) -> None:
+        self.world = world
+        self.spec = spec
+        self.name = name
+        self.sensors = SensorArray(spec.sensors, world.optics)
+        self._tof_rng, self._gyro_rng, self._uwb_rng, self._slip_rng = rngs
+        reach = max((math.hypot(m.x_mm, m.y_mm) for m in spec.sensors), default=0.0)
+        self._cast_radius = world.optics.max_path_mm + reach
+        self._contact_radius = math.hypot(spec.length_mm, spec.width_mm) / 2 + 1.0
+        self.body = RobotBody(spec, pose)
+        self.floor_level = world.plan.floor(floor).level
+        self._command_until = math.inf
+        """The motor controller's watchdog deadline for the wheel set-point (world time)."""
+        self.collisions: list[Collision] = []
+        self._touching: set[str] = set()
+        self._layers: Layers | None = None
+        self._returns: dict[tuple[int, SpadRoi], Returns] = {}
+
+    # --- state -----------------------------------------------------------------------------
+
+    @property
+    def floor(self) -> Floor:
+        return self.world.plan.floor(self.floor_level)
+
+    @property
+    def pose(self) -> Pose:
+        """Ground-truth pose of the body centre."""
+        return self.body.pose
+
+    def surfaces(self, t_s: float | None = None) -> Surfaces:
+        """Everything on this robot's floor but itself (see :meth:`World.surfaces`)."""
+        return self.world.surfaces(self.floor_level, t_s, without=self)
+
+    def outline(self) -> Surfaces:
+        """The body as the others see and touch it: its four sides, ground to top."""
+        s, spec = self.body.state, self.spec
+        c, sn = math.cos(s.theta), math.sin(s.theta)
+        hl, hw = spec.length_mm / 2, spec.width_mm / 2
+        corners = [
+            (s.x + c * dx - sn * dy, s.y + sn * dx + c * dy)
+            for dx, dy in ((hl, hw), (hl, -hw), (-hl, -hw), (-hl, hw))
+        ]
+        sides = np.array(
+            [
+                [*corners[i], *corners[(i + 1) % 4], spec.ground_clearance_mm, spec.height_mm]
+                for i in range(4)
+            ]
+        )
+        return Surfaces(
+            sides, (self.name,) * 4, np.zeros((0, 5)), (), np.full(4, ROBOT_SHELL)
+        )
+
+    def place(self, pose: Pose, floor: int | None = None) -> None:
         """Put the robot at rest somewhere, on another floor after an elevator ride."""
         if floor is not None:
-            self.floor_level = self.plan.floor(floor).level
+            self.floor_level = self.world.plan.floor(floor).level
         self.body.place(pose)
         self._touching.clear()
-        self._forget_returns()
+        for robot in self.world.robots:
+            robot.forget_returns()
         s = self.body.state
         self._record_contacts(self._contacts(s.x, s.y, s.theta))
+
+    def drive(self, h: float) -> None:
+        """One physics sub-step of ``h`` seconds: wheels, slip, contacts."""
+        if self.world.t_s >= self._command_until:
+            self.command_wheels(0.0, 0.0)
+        proposed = self.body.propose(h, self._slip_rng)
+        contacts = self._contacts(proposed.x, proposed.y, proposed.theta)
+        if contacts:
+            self._record_contacts(contacts)
+            self.body.stall()
+        else:
+            self.body.state = proposed
+            if self._touching:
+                clear_of = self._contacts(proposed.x, proposed.y, proposed.theta, _RELEASE_MM)
+                self._touching &= clear_of.keys()
 
     def _contacts(
         self, x: float, y: float, theta: float, inflate_mm: float = 0.0
@@ -235,7 +321,7 @@ class World:
         if not len(segments) and not len(cylinders):
             return {}  # the usual case, every physics step: nothing within reach
         near = surfaces.take(segments, cylinders)
-        spec = self.robot
+        spec = self.spec
         found = footprint_contacts(
             near,
             x,
@@ -253,7 +339,9 @@ class World:
         for element, (x, y) in contacts.items():
             if element not in self._touching:
                 self.collisions.append(
-                    Collision(self.t_s, self.floor_level, element, x, y, speed, self.body.state)
+                    Collision(
+                        self.world.t_s, self.floor_level, element, x, y, speed, self.body.state
+                    )
                 )
         self._touching |= contacts.keys()
 
@@ -264,7 +352,7 @@ class World:
         operations."""
         if self._touching and surfaces is None:
             return 0.0
-        s, spec = self.body.state, self.robot
+        s, spec = self.body.state, self.spec
         if surfaces is None:
             surfaces = self.surfaces()
         lo, hi = spec.ground_clearance_mm, spec.height_mm
@@ -312,7 +400,8 @@ class World:
 
     # --- time-of-flight sensors ------------------------------------------------------------
 
-    def _forget_returns(self) -> None:
+    def forget_returns(self) -> None:
+        """Something moved: the cones are cast again when next asked."""
         self._layers = None
         self._returns.clear()
 
@@ -333,7 +422,7 @@ class World:
         self, sensor: int, setup: RangingSetup = DEFAULT_SETUP, roi: SpadRoi = FULL_ROI
     ) -> ToFReading:
         """One ranging of sensor ``sensor`` with the chip set up as ``setup``, with noise."""
-        return range_once(self.tof_returns(sensor, roi), setup, self.noise, self._tof_rng)
+        return range_once(self.tof_returns(sensor, roi), setup, self.world.noise, self._tof_rng)
 
     def scan(self, setup: RangingSetup = DEFAULT_SETUP) -> list[ToFReading]:
         """One ranging of every sensor through its full ROI."""
@@ -344,13 +433,13 @@ class World:
     def uwb_tag_position(self) -> tuple[float, float, float]:
         """Ground truth of the tag antenna in the floor frame."""
         s = self.body.state
-        tx, ty, tz = self.robot.uwb_tag_mm
+        tx, ty, tz = self.spec.uwb_tag_mm
         c, sn = math.cos(s.theta), math.sin(s.theta)
         return s.x + c * tx - sn * ty, s.y + sn * tx + c * ty, tz
 
     def uwb_fix(self) -> UwbFix | None:
         """What the tag would report now; ``None`` with fewer than three anchors in range."""
-        model, rng = self.uwb_model, self._uwb_rng
+        model, rng = self.world.uwb_model, self._uwb_rng
         truth = np.array(self.uwb_tag_position())
         anchors = sorted(
             (float(np.linalg.norm(truth - (a.x_mm, a.y_mm, a.z_mm))), a.id, a)
