@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: run test lint screenshots system-deps clean install
+.PHONY: run fleet-demo test lint screenshots system-deps clean install
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -18,6 +18,12 @@ HOST ?= 127.0.0.1
 PORT ?= 8080
 run: $(STAMP)
 	$(BIN)/coffeebot sim --host $(HOST) --port $(PORT)
+
+# The fleet demo: a Mosquitto broker of its own, the dispatcher (web UI on the same address)
+# and ROBOTS simulated robots in one building (docs/fleet.md).
+ROBOTS ?= 3
+fleet-demo: $(STAMP) system-deps
+	$(BIN)/coffeebot fleet --sim $(ROBOTS) --host $(HOST) --port $(PORT)
 
 # On the robot, as root, in a checkout at /opt/coffeebot: the systemd unit, its user and a
 # default /etc/coffeebot (docs/robot.md).

@@ -15,6 +15,7 @@ import json
 import logging
 import math
 import os
+import signal
 import sys
 import time
 from dataclasses import asdict
@@ -22,7 +23,7 @@ from pathlib import Path
 
 from coffeebot.board import Board
 from coffeebot.board.recording import Player, RecordingError, recording_info
-from coffeebot.clock import ScaledClock
+from coffeebot.clock import MonotonicClock, ScaledClock
 from coffeebot.config import RobotConfig, load_robot_config
 from coffeebot.daemon import Daemon
 from coffeebot.errors import CoffeebotError, ConfigError
@@ -58,6 +59,13 @@ def _positive(text: str) -> float:
     value = float(text)
     if not math.isfinite(value) or value <= 0:
         raise argparse.ArgumentTypeError(f"must be a positive number, got {text}")
+    return value
+
+
+def _robots(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"at least one robot, got {text}")
     return value
 
 
@@ -116,6 +124,19 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument(
         "--fresh", action="store_true", help="start with an empty queue that is not kept"
     )
+    fleet = sub.add_parser(
+        "fleet", help="run a fleet's dispatcher: the order queue and web UI for every robot"
+    )
+    _add_common(fleet)
+    fleet.add_argument(
+        "--sim",
+        type=_robots,
+        metavar="N",
+        help="the demo: N simulated robots in one building, on a Mosquitto of its own",
+    )
+    fleet.add_argument("--speed", type=_speed, default=1.0, help="with --sim: as for sim")
+    fleet.add_argument("--host", default="127.0.0.1", help="web UI address (default 127.0.0.1)")
+    fleet.add_argument("--port", type=int, default=8080, help="web UI port (default 8080)")
     check = sub.add_parser("check-hardware", help="probe every device once and print a table")
     _add_common(check)
     check.add_argument("--sim", action="store_true", help="probe the simulated buses instead")
@@ -216,6 +237,46 @@ def _sim_command(config: RobotConfig, args: argparse.Namespace) -> int:
             extra={"path": str(args.report), "real_time_factor": report.real_time_factor},
         )
     return 0
+
+
+async def _fleet(config: RobotConfig, plan: FloorPlan, args: argparse.Namespace) -> None:
+    """The dispatcher on the broker of ``[fleet] broker``; with ``--sim N`` the whole demo:
+    a broker of its own, the dispatcher and N simulated robots."""
+    from coffeebot.fleet.mosquitto import DISPATCHER_USER
+    from coffeebot.modules.fleet_bridge import credentials_from_env
+    from coffeebot.runtime.fleet import dispatcher_runtime
+    from coffeebot.store import OrderStore
+
+    if args.sim is not None:
+        from coffeebot.fleet.mosquitto import mosquitto
+        from coffeebot.runtime.fleet import build_fleet_sim, robot_ids, serve_fleet
+
+        with mosquitto(robot_ids(args.sim)) as broker:
+            log.info("broker on %s, %d simulated robots", broker.address.url, args.sim)
+            async with build_fleet_sim(
+                config, plan, args.sim, broker.address, broker.credentials, speed=args.speed
+            ) as fleet:
+                loop = asyncio.get_running_loop()
+                for signum in (signal.SIGINT, signal.SIGTERM):
+                    loop.add_signal_handler(signum, fleet.request_stop, signum.name)
+                await serve_fleet(fleet)
+        return
+    if not config.fleet.broker:
+        raise ConfigError(f"{args.board}: [fleet] broker: the dispatcher needs the broker's URL")
+    store = OrderStore(config.store.path, busy_timeout_s=config.store.busy_timeout_s)
+    try:
+        dispatcher = dispatcher_runtime(
+            config,
+            plan,
+            store,
+            config.fleet.broker,
+            credentials_from_env(DISPATCHER_USER),
+            MonotonicClock(),
+        )
+        dispatcher.daemon.install_signal_handlers()
+        await dispatcher.daemon.run()
+    finally:
+        store.close()
 
 
 def format_table(results: list[CheckResult]) -> str:
@@ -339,6 +400,12 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.command == "sim":
             return _sim_command(config, args)
+        if args.command == "fleet":
+            web = config.web.model_copy(update={"host": args.host, "port": args.port})
+            asyncio.run(
+                _fleet(config.model_copy(update={"web": web}), load_floorplan(args.floorplan), args)
+            )
+            return 0
         robot = build_robot(config, load_floorplan(args.floorplan))
         asyncio.run(serve(robot, args.record, args.foxglove))
     except ConfigError as exc:

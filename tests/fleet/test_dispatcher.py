@@ -56,7 +56,7 @@ class Harness:
             TravelTimes(PLAN, CONFIG, Pace()),
             DispatchConfig(),
             lambda robot, message: self.sent.append((robot, message)),
-            lambda order, cause: self.announced.append((order.id, order.status)),
+            lambda order, cause, report=None: self.announced.append((order.id, order.status)),
             self.clock,
         )
         self.dispatcher.link_up_since_s = 0.0

@@ -13,7 +13,7 @@ from __future__ import annotations
 import asyncio
 import json
 import time
-from collections.abc import AsyncIterator, Awaitable, Callable, Iterator
+from collections.abc import AsyncIterator, Awaitable, Callable
 from pathlib import Path
 
 import aiomqtt
@@ -46,11 +46,12 @@ from coffeebot.modules.fleet_bridge import FleetBridge
 from coffeebot.runtime.fleet import DispatcherRuntime, dispatcher_runtime
 from coffeebot.store import NewOrder, Order, OrderRules, OrderStore
 
+from .conftest import ROBOTS
+
 ROOT = Path(__file__).resolve().parents[2]
 PLAN = load_floorplan(ROOT / "floorplans" / "cs-building.toml")
 BOARD = load_robot_config(ROOT / "boards" / "coffeebot-v1.toml")
 RULES = OrderRules(rooms=set(PLAN.rooms), drinks=set(BOARD.web.drinks))
-ROBOTS = ["robot-1", "robot-2"]
 WAIT_S = 20.0
 DISPATCH = DispatchConfig(stale_after_s=1.0, lost_after_s=2.0, ack_timeout_s=0.5, lease_s=2.0)
 
@@ -64,13 +65,14 @@ class StandInNavigation(Module):
     inputs = (ORDER_DISPATCH, OPERATOR_EVENT, LEASE_STATE)
     outputs = (DELIVERY_STATUS, CURRENT_STATE, LEASE_NEED)
 
-    def __init__(self, drive_s: float = 0.5) -> None:
+    def __init__(self, drive_s: float = 0.5, at: tuple[float, float] = (42000, -1650)) -> None:
         self.drive_s = drive_s
+        self.at = at
 
     async def run(self, ctx: ModuleContext) -> None:
         pose = PoseEstimate(
-            x_mm=42000, y_mm=-1650, heading_deg=90, floor=2, sigma_x_mm=30, sigma_y_mm=30,
-            sigma_heading_deg=1,
+            x_mm=self.at[0], y_mm=self.at[1], heading_deg=90, floor=2, sigma_x_mm=30,
+            sigma_y_mm=30, sigma_heading_deg=1,
         )
         ctx.board.publish(CURRENT_STATE, CurrentState(pose=pose))
         with ctx.board.subscribe(ORDER_DISPATCH) as dispatches:
@@ -118,23 +120,28 @@ def robot_config(broker: Mosquitto, robot: str) -> RobotConfig:
 class Fleet:
     """The broker, the dispatcher and stand-in robots, each robot a daemon of its own."""
 
-    def __init__(self, broker: Mosquitto, store: OrderStore) -> None:
+    def __init__(self, broker: Mosquitto, store: OrderStore, web: bool = False) -> None:
+        """``web``: the dispatcher serves its web UI on a free port."""
         self.broker = broker
         clock = MonotonicClock()
         config = BOARD.model_copy(
-            update={"fleet": FleetConfig(dispatch=DISPATCH)}
+            update={
+                "fleet": FleetConfig(dispatch=DISPATCH),
+                "web": BOARD.web.model_copy(update={"port": 0}),
+            }
         )
         self.dispatcher: DispatcherRuntime = dispatcher_runtime(
             config, PLAN, store, broker.address.url, broker.credentials["dispatcher"], clock,
-            web=False,
+            web=web,
         )
         self.robots: dict[str, Daemon] = {}
         self.bridges: dict[str, FleetBridge] = {}
-        for robot in ROBOTS:
+        for index, robot in enumerate(ROBOTS):
             board = Board(ALL_TOPICS, clock=clock)
             bridge = FleetBridge(robot_config(broker, robot), broker.credentials[robot])
             self.bridges[robot] = bridge
-            self.robots[robot] = Daemon(board, [bridge, StandInNavigation()])
+            standing = StandInNavigation(at=(42000 - 6000 * index, -300))
+            self.robots[robot] = Daemon(board, [bridge, standing])
 
     async def start(self) -> None:
         await self.dispatcher.daemon.start()
@@ -175,14 +182,6 @@ class Fleet:
     def act(self, kind: str, order_id: str) -> None:
         assert self.orders.dispatcher is not None
         assert self.orders.dispatcher.operator(kind, order_id)  # type: ignore[arg-type]
-
-
-@pytest.fixture
-def broker() -> Iterator[Mosquitto]:
-    broker = Mosquitto(ROBOTS)
-    broker.start()
-    yield broker
-    broker.close()
 
 
 @pytest.fixture

@@ -92,7 +92,7 @@ def test_cones_start_at_the_mount_turn_with_the_robot_and_say_the_reading() -> N
     # Nothing in range: clear as far as the sensor sees, not a fault.
     assert (left.reach, left.range_mm, left.text) == ("clear", 4000, "tof6: nothing in range")
     assert (right.reach, right.text) == ("fault", "tof0: no reading (bus error)")
-    assert robot == RobotShape(label="estimated", x_mm=5000, y_mm=800, heading_deg=90)
+    assert robot == RobotShape(label="estimated", x_mm=5000, y_mm=800, heading_deg=90, floor=3)
 
 
 def test_the_estimate_is_drawn_with_its_95_percent_ellipse() -> None:

@@ -35,6 +35,7 @@ import itertools
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Protocol
 
 from coffeebot.config import DispatchConfig
 from coffeebot.errors import OrderError, StoreError
@@ -96,6 +97,12 @@ class RobotRecord:
         return self.stale_since_s is not None
 
 
+
+class Announce(Protocol):
+    def __call__(self, order: Order, cause: str, report: DeliveryReport | None = None) -> None:
+        """Tell the web a stored change; ``report``: the robot's, when it came from one."""
+
+
 @dataclass
 class DispatchCounters:
     assignments: int = 0
@@ -114,7 +121,7 @@ class Dispatcher:
         travel: TravelTimes,
         config: DispatchConfig,
         send: Callable[[str, FleetMessage], None],
-        announce: Callable[[Order, str], None],
+        announce: Announce,
         now: Callable[[], float],
     ) -> None:
         """``send(robot, message)`` goes out to the robot; ``announce(order, cause)`` tells
@@ -210,7 +217,7 @@ class Dispatcher:
         if order is None:
             log.warning("report from %s out of sequence: ignored", robot)
             return
-        self.announce(order, report.detail or f"reported by {robot}")
+        self.announce(order, report.detail or f"reported by {robot}", report)
         if order.status.final:
             record.order_id = None
             record.assignment = None

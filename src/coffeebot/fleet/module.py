@@ -18,7 +18,7 @@ from urllib.parse import urlparse
 import aiomqtt
 
 from coffeebot.board import Subscription
-from coffeebot.fleet.dispatcher import Dispatcher
+from coffeebot.fleet.dispatcher import Announce, Dispatcher
 from coffeebot.fleet.mosquitto import Credentials
 from coffeebot.fleet.protocol import (
     DISPATCHER_CONNECTION,
@@ -59,7 +59,6 @@ from coffeebot.orders import OrdersUnavailable
 from coffeebot.store import NewOrder, Order, OrderStore, PlacedOrder
 
 Send = Callable[[str, FleetMessage], None]
-Announce = Callable[[Order, str], None]
 MakeDispatcher = Callable[[Send, Announce, Callable[[], float]], Dispatcher]
 
 TICK_S = 1.0
@@ -123,10 +122,16 @@ class DispatcherModule(Module):
         def send(robot: str, message: FleetMessage) -> None:
             self._outbox.put_nowait((robot, message))
 
-        def announce(order: Order, cause: str) -> None:
+        def announce(order: Order, cause: str, report: DeliveryReport | None = None) -> None:
             ctx.board.publish(
                 ORDER_UPDATE,
-                OrderUpdate(order_id=order.id, status=order.status, detail=order.detail),
+                OrderUpdate(
+                    order_id=order.id,
+                    status=order.status,
+                    detail=order.detail,
+                    ready_for_cup=report is not None and report.ready_for_cup,
+                    problem=None if report is None else report.problem,
+                ),
             )
             ctx.log.info("order %s: %s (%s)", order.id, order.status.value, cause)
 

@@ -21,7 +21,7 @@ import asyncio
 import contextlib
 import functools
 import logging
-from collections.abc import AsyncIterator, Callable, Mapping
+from collections.abc import AsyncIterator, Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -29,9 +29,10 @@ from coffeebot.board import Board
 from coffeebot.clock import Clock, SteppedClock
 from coffeebot.config import RobotConfig
 from coffeebot.daemon import Daemon
-from coffeebot.fleet.dispatcher import Dispatcher
+from coffeebot.errors import ConfigError
+from coffeebot.fleet.dispatcher import Announce, Dispatcher
 from coffeebot.fleet.estimates import TravelTimes
-from coffeebot.fleet.module import Announce, DispatcherModule, Send
+from coffeebot.fleet.module import DispatcherModule, Send
 from coffeebot.fleet.mosquitto import DISPATCHER_USER, BrokerAddress, Credentials
 from coffeebot.floorplan import FloorPlan
 from coffeebot.messages import ALL_TOPICS, FLEET, PoseEstimate
@@ -51,6 +52,9 @@ from coffeebot.web.livemap import MapPose
 
 log = logging.getLogger(__name__)
 
+STALE_VIEW_S = 5.0
+"""The fleet's view is published every second: silent this long, the inspector alerts."""
+
 
 @dataclass
 class DispatcherRuntime:
@@ -61,7 +65,8 @@ class DispatcherRuntime:
 
 
 def fleet_poses(board: Board) -> Callable[[], Mapping[str, MapPose]]:
-    """The robots the dispatcher knows, for the live map, the freshest first."""
+    """The robots the dispatcher knows, for the live map, the freshest first; a silent one
+    stays where it was last heard of, marked with how long it has been silent."""
 
     def poses() -> Mapping[str, MapPose]:
         view = board.latest(FLEET)
@@ -69,7 +74,13 @@ def fleet_poses(board: Board) -> Callable[[], Mapping[str, MapPose]]:
             return {}
         robots = sorted(view.msg.robots, key=lambda r: (r.stale, r.robot))
         return {
-            r.robot: MapPose(x_mm=r.x_mm, y_mm=r.y_mm, heading_deg=r.heading_deg, floor=r.floor)
+            r.robot: MapPose(
+                x_mm=r.x_mm,
+                y_mm=r.y_mm,
+                heading_deg=r.heading_deg,
+                floor=r.floor,
+                silent_s=r.heard_ago_s if r.stale else None,
+            )
             for r in robots
             if r.x_mm is not None
             and r.y_mm is not None
@@ -89,9 +100,11 @@ def dispatcher_runtime(
     clock: Clock,
     *,
     web: bool = True,
+    extra: Sequence[Module] = (),
 ) -> DispatcherRuntime:
     """The dispatcher's daemon: ``config`` is the fleet's robots' description (their pace on
-    routes, the web's settings, ``[fleet.dispatch]``)."""
+    routes, the web's settings, ``[fleet.dispatch]``); ``extra``: modules beside it (the
+    simulated staff)."""
     board = Board(ALL_TOPICS, clock=clock)
     travel = TravelTimes(plan, config, Pace(pickup_timeout_s=config.navigation.pickup_timeout_s))
 
@@ -100,11 +113,13 @@ def dispatcher_runtime(
 
     module = DispatcherModule(broker, login, make, store)
     runtime = DispatcherRuntime(board, module, store)
-    modules: list[Module] = [module]
+    modules: list[Module] = [module, *extra]
     if web:
+        # The dispatcher's board carries no robot's sensors: only its own view must keep coming.
+        own = config.web.model_copy(update={"stale_after_s": {FLEET.name: STALE_VIEW_S}})
         modules.append(
             web_module(
-                config,
+                config.model_copy(update={"web": own}),
                 plan,
                 board,
                 module,
@@ -146,6 +161,7 @@ async def build_fleet_sim(
     seed: int = 0,
     state_dir: Path | None = None,
     web: bool = True,
+    dispatcher_extra: Sequence[Module] = (),
 ) -> AsyncIterator[FleetSim]:
     """``count`` simulated robots, each parked at its spot in the tea room, and the
     dispatcher, on the broker at ``broker`` with ``logins`` (by user name); the world runs
@@ -154,8 +170,9 @@ async def build_fleet_sim(
     base = plan.find_room(config.navigation.base_room)
     spots = base.floor.parking
     if count > len(spots):
-        raise ValueError(
-            f"{count} robots but {len(spots)} parking spots on floor {base.floor.level}"
+        raise ConfigError(
+            f"{plan.name}: {count} robots but {len(spots)} parking spots in "
+            f"{base.door.room} on floor {base.floor.level}"
         )
     spec = RobotSpec.from_config(config)
     poses = [Pose(s.x_mm, s.y_mm, s.heading_deg) for s in spots[:count]]
@@ -178,8 +195,10 @@ async def build_fleet_sim(
         )
         robots, sims = [], []
         for index, robot in enumerate(robot_ids(count)):
-            body = world.robot if index == 0 else world.add_robot(
-                spec, base.floor.level, poses[index], name=robot
+            body = (
+                world.robot
+                if index == 0
+                else world.add_robot(spec, base.floor.level, poses[index], name=robot)
             )
             fleet = config.fleet.model_copy(
                 update={"broker": url, "robot_id": robot, "parking_spot": index}
@@ -211,7 +230,14 @@ async def build_fleet_sim(
             )
             sims.append(sim)
         dispatcher = dispatcher_runtime(
-            config, plan, store, url, logins[DISPATCHER_USER], clock, web=web
+            config,
+            plan,
+            store,
+            url,
+            logins[DISPATCHER_USER],
+            clock,
+            web=web,
+            extra=dispatcher_extra,
         )
         world_task = asyncio.create_task(shared.run(), name="simulated world")
         try:

@@ -54,6 +54,9 @@ class MapPose(BaseModel):
     y_mm: float
     heading_deg: float
     floor: int
+    silent_s: float | None = None
+    """A fleet's robot not heard of for this long (drawn grey where it was last); None:
+    reporting."""
 
 
 PoseSource = Callable[[], Mapping[str, MapPose]]
@@ -66,6 +69,9 @@ class RobotShape(BaseModel):
     x_mm: float
     y_mm: float
     heading_deg: float
+    floor: int
+    """Robots are drawn on their own floor, whichever floor the map shows."""
+    silent_s: float | None = None
 
 
 class EllipseShape(BaseModel):
@@ -262,8 +268,14 @@ def map_frame(
         if envelope is not None:
             shapes.extend(layer(envelope, ctx))
     shapes.extend(
-        RobotShape(label=label, x_mm=p.x_mm, y_mm=p.y_mm, heading_deg=p.heading_deg)
+        RobotShape(
+            label=label,
+            x_mm=p.x_mm,
+            y_mm=p.y_mm,
+            heading_deg=p.heading_deg,
+            floor=p.floor,
+            silent_s=p.silent_s,
+        )
         for label, p in current.items()
-        if p.floor == anchor.floor
     )
     return MapFrame(floor=anchor.floor, shapes=shapes, caption=elevator_caption(board))

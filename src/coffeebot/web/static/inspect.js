@@ -162,12 +162,18 @@
 
   const draw = {
     robot(s, g) {
+      const silent = s.silent_s !== null && s.silent_s !== undefined;
       const r = node("g", {
-        class: `robot ${s.label}`, "data-label": s.label,
+        class: `robot ${s.label}${silent ? " silent" : ""}`, "data-label": s.label,
         transform: `translate(${s.x_mm} ${s.y_mm}) rotate(${s.heading_deg})`,
       }, g);
       node("rect", { x: -robot.length_mm / 2, y: -robot.width_mm / 2, width: robot.length_mm, height: robot.width_mm, rx: 60 }, r);
       node("line", { x1: 0, y1: 0, x2: robot.length_mm / 2, y2: 0 }, r);
+      // A fleet's robots are named on the map; a silent one says since when.
+      if (!["estimated", "true"].includes(s.label)) {
+        const text = silent ? `${s.label}: silent for ${Math.round(s.silent_s)} s` : s.label;
+        label(g, s.x_mm, s.y_mm + robot.width_mm, text, `robot-label${silent ? " silent" : ""}`);
+      }
     },
     cone(s, g) {
       const steps = 6, pts = [[s.x_mm, s.y_mm]];
@@ -212,7 +218,8 @@
     if (floor === undefined) return;
     if (floor !== mapFloor) await loadFloor(floor);
     const svg = el("map").querySelector("svg");
-    const shapes = map.floor === floor ? map.shapes : [];
+    // Layers belong to the followed robot's floor; every robot is drawn on its own floor.
+    const shapes = map.shapes.filter((s) => (s.kind === "robot" ? s.floor === floor : map.floor === floor));
     const g = document.createElementNS(SVG, "g");
     for (const s of shapes) (draw[s.kind] || (() => {}))(s, g);
     overlay.replaceChildren(...g.childNodes);
