@@ -802,6 +802,13 @@ class NavigationConfig(Section):
     pull_over_mm: float = Field(
         3000.0, ge=0, le=LENGTH_MM, description="how early to cross to the door side"
     )
+    hold_short_mm: float = Field(
+        1200.0,
+        ge=0,
+        le=LENGTH_MM,
+        description="a fleet's robot coming back waits for the loading spot this far before "
+        "the base room's door, clear of a robot driving out of it",
+    )
     elevator: ElevatorConfig = ElevatorConfig()
 
 

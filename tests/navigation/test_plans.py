@@ -10,7 +10,7 @@ from coffeebot.messages import DeliveryProblem, OrderStatus
 from coffeebot.navigation.control import SpeedProfile, wheel_speeds
 from coffeebot.navigation.lifecycle import DeliveryLifecycle
 from coffeebot.navigation.path import route_legs
-from coffeebot.navigation.route import ElevatorRide, Move, RoutePlanner
+from coffeebot.navigation.route import ElevatorRide, Lease, Move, RoutePlanner
 
 PLANNER = RoutePlanner(
     PLAN,
@@ -92,6 +92,28 @@ def test_route_back_to_base_parks_inside() -> None:
     x, y = last.x_mm, last.y_mm
     _, d = PLAN.floor(2).to_hallway(x, y)
     assert d < -PLAN.floor(2).hallway.width_mm / 2  # behind the tea room's door line
+
+
+def test_a_fleet_robot_coming_back_waits_for_the_loading_spot_short_of_the_door() -> None:
+    """Not in the doorway: a robot driving out of the tea room must get past it."""
+    fleet_robot = RoutePlanner(
+        PLAN,
+        CONFIG.motion,
+        CONFIG.navigation,
+        CONFIG.geometry.width_mm,
+        pivot_mm=CONFIG.motor.axle_x_mm,
+        parking=PLAN.floor(2).parking[1],
+    )
+    start = PLAN.find_room("209").door.at_mm
+    steps = fleet_robot.route(2, start, fleet_robot.base).steps
+    ask = next(i for i, s in enumerate(steps) if s == Lease("loading_spot", True))
+    before = steps[ask - 1]
+    assert isinstance(before, Move) and before.instruction.stop
+    door = fleet_robot.base.door
+    short_by = door.at_mm - before.instruction.target_s_mm
+    assert short_by >= CONFIG.navigation.hold_short_mm
+    assert short_by - CONFIG.navigation.hold_short_mm < CONFIG.motor.axle_x_mm + 1
+    assert steps[-1] == Lease("loading_spot", False), "the spot is given back once parked"
 
 
 def test_profile_brakes_to_zero_within_the_band_and_rate_limits() -> None:

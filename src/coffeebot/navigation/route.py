@@ -280,19 +280,26 @@ class RoutePlanner:
                 self._lane(floor, pull_over_at, keep_right, stop=False, detail="along the hallway")
             )
         lane = side_lane if self.nav.door_side_lane or goal.inside else keep_right
+        spot = self.parking if goal.inside else None
+        turn_at = self.turn_point_mm(door, direction)
+        if spot is not None:
+            # A robot may be driving out of the door: wait for the room clear of its way.
+            hold_at = turn_at - direction * self.nav.hold_short_mm
+            if (hold_at - s) * direction > 0:
+                steps.append(
+                    self._lane(floor, hold_at, lane, detail=f"short of {door.room}'s door")
+                )
+            steps.append(Lease("loading_spot", True))
         steps.append(
             self._lane(
                 floor,
-                self.turn_point_mm(door, direction) if goal.inside else door.at_mm,
+                turn_at if goal.inside else door.at_mm,
                 lane,
                 room=None if goal.inside else door.room,
                 detail=f"to {door.room}",
             )
         )
         if goal.inside:
-            spot = self.parking
-            if spot is not None:
-                steps.append(Lease("loading_spot", True))
             steps.append(self._turn(floor, self.facing_deg(floor, door), f"facing {door.room}"))
             steps.append(self.to_loading_spot(floor, door, f"into {door.room}"))
             if spot is None:
