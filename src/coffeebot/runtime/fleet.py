@@ -162,10 +162,12 @@ async def build_fleet_sim(
     state_dir: Path | None = None,
     web: bool = True,
     dispatcher_extra: Sequence[Module] = (),
+    robot_extra: Callable[[str], Sequence[Module]] | None = None,
 ) -> AsyncIterator[FleetSim]:
     """``count`` simulated robots, each parked at its spot in the tea room, and the
     dispatcher, on the broker at ``broker`` with ``logins`` (by user name); the world runs
-    while the context is open."""
+    while the context is open. ``dispatcher_extra`` and ``robot_extra(robot id)``: modules
+    added to their daemons (simulated staff, a benchmark's probes)."""
     clock = SteppedClock(speed)
     base = plan.find_room(config.navigation.base_room)
     spots = base.floor.parking
@@ -226,6 +228,9 @@ async def build_fleet_sim(
                     elevator=SimElevatorLink(sim),
                     web=False,
                     broker_login=logins[robot],
+                    extra=None
+                    if robot_extra is None
+                    else functools.partial(lambda name, _: robot_extra(name), robot),
                 )
             )
             sims.append(sim)

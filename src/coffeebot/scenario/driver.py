@@ -24,7 +24,6 @@ from coffeebot.messages import (
     OPERATOR_EVENT,
     ORDER_UPDATE,
     HealthStatus,
-    OperatorEvent,
     OrderStatus,
     OrderUpdate,
     SafetyState,
@@ -39,6 +38,7 @@ from coffeebot.scenario.report import (
     world_facts,
 )
 from coffeebot.scenario.spec import OrderSpec, Scenario
+from coffeebot.scenario.staff import act
 from coffeebot.sim.simulation import Simulation
 from coffeebot.sim.world import Pose
 from coffeebot.store import NewOrder, OrderRules
@@ -163,23 +163,16 @@ class ScenarioModule(Module):
 
     def _people(self, ctx: ModuleContext, t: float) -> None:
         """Staff load the cup, the customer takes it, each after the scenario's delay."""
-        staff = self.scenario.staff
         for track in self.log.orders:
-            if track.id is None:
-                continue
-            due: list[tuple[str, float | None, float | None]] = [
-                ("cup_loaded", track.ready_at_s, staff.load_after_s),
-                ("pickup_confirmed", track.arrived_at_s, staff.pickup_after_s),
-            ]
-            for kind, since, delay in due:
-                if since is None or delay is None or kind in track.told or t < since + delay:
-                    continue
-                track.told.add(kind)
-                ctx.board.publish(
-                    OPERATOR_EVENT,
-                    OperatorEvent.model_validate(
-                        {"kind": kind, "order_id": track.id, "source": "scenario"}
-                    ),
+            if track.id is not None:
+                act(
+                    ctx,
+                    self.scenario.staff,
+                    track.id,
+                    track.ready_at_s,
+                    track.arrived_at_s,
+                    track.told,
+                    t,
                 )
 
     def _odometer(self) -> None:

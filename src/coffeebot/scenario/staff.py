@@ -57,17 +57,31 @@ class StaffModule(Module):
     def _act(self, ctx: ModuleContext, order_id: str, times: OrderTimes, now: float) -> None:
         if times.status.final:
             return
-        due = (
-            ("cup_loaded", times.ready_s, self.staff.load_after_s),
-            ("pickup_confirmed", times.arrived_s, self.staff.pickup_after_s),
+        act(ctx, self.staff, order_id, times.ready_s, times.arrived_s, times.told, now)
+
+
+def act(
+    ctx: ModuleContext,
+    staff: Staff,
+    order_id: str,
+    ready_s: float | None,
+    arrived_s: float | None,
+    told: set[str],
+    now: float,
+) -> None:
+    """Load the cup ``load_after_s`` after the robot was ready for it and take it
+    ``pickup_after_s`` after it arrived, once each (``told``)."""
+    due = (
+        ("cup_loaded", ready_s, staff.load_after_s),
+        ("pickup_confirmed", arrived_s, staff.pickup_after_s),
+    )
+    for kind, since, delay in due:
+        if since is None or delay is None or kind in told or now < since + delay:
+            continue
+        told.add(kind)
+        ctx.board.publish(
+            OPERATOR_EVENT,
+            OperatorEvent.model_validate(
+                {"kind": kind, "order_id": order_id, "source": "scenario"}
+            ),
         )
-        for kind, since, delay in due:
-            if since is None or delay is None or kind in times.told or now < since + delay:
-                continue
-            times.told.add(kind)
-            ctx.board.publish(
-                OPERATOR_EVENT,
-                OperatorEvent.model_validate(
-                    {"kind": kind, "order_id": order_id, "source": "scenario"}
-                ),
-            )
