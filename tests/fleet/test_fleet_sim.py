@@ -1,0 +1,153 @@
+"""Two simulated robots, each its whole daemon, in one simulated building with the dispatcher,
+over a real Mosquitto: they share the tea room's loading spot one at a time and both deliver,
+one behind the other down the hallway, without touching.
+
+One run (module fixture) as fast as the machine allows, on the simulated clock; what the
+tests assert is ground truth the world recorded along the way. The orders: two at once, to
+211 and 213, so both robots want the loading spot first thing.
+
+(Two robots meeting head-on in the 1700 mm hallway do not pass each other yet: each takes
+the other for an obstacle in its lane and they end up face to face, stopped and "blocked";
+docs/fleet.md, "What is not done".)
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import math
+import time
+from collections.abc import AsyncIterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+import pytest_asyncio
+
+from coffeebot.config import load_robot_config
+from coffeebot.fleet.mosquitto import mosquitto
+from coffeebot.floorplan import load_floorplan
+from coffeebot.messages import OrderStatus
+from coffeebot.navigation.route import RoutePlanner
+from coffeebot.runtime.fleet import FleetSim, build_fleet_sim, robot_ids, serve_fleet
+from coffeebot.scenario.spec import Staff
+from coffeebot.scenario.staff import StaffModule
+from coffeebot.sim.world.world import WorldRobot
+from coffeebot.store import NewOrder, OrderRules
+
+ROOT = Path(__file__).resolve().parents[2]
+PLAN = load_floorplan(ROOT / "floorplans" / "cs-building.toml")
+BOARD = load_robot_config(ROOT / "boards" / "coffeebot-v1.toml")
+RULES = OrderRules(rooms=set(PLAN.rooms), drinks=set(BOARD.web.drinks))
+TIME_LIMIT_S = 300.0
+"""Simulated seconds the two deliveries may take."""
+WALL_LIMIT_S = 900.0
+"""The machine's seconds before the run is called stuck."""
+SAMPLE_S = 0.1
+
+
+@dataclass
+class Sample:
+    t_s: float
+    poses: list[tuple[float, float, float, int]]
+    """(x, y, heading in degrees, floor) per robot."""
+
+
+@dataclass
+class FleetRun:
+    orders: dict[str, OrderStatus] = field(default_factory=dict)
+    samples: list[Sample] = field(default_factory=list)
+    contacts: list[str] = field(default_factory=list)
+    ended: str = ""
+
+
+def pose_of(robot: WorldRobot) -> tuple[float, float, float, int]:
+    pose = robot.pose
+    return (pose.x_mm, pose.y_mm, pose.heading_deg, robot.floor_level)
+
+
+async def drive(fleet: FleetSim, staff: StaffModule) -> FleetRun:
+    run = FleetRun()
+    orders = fleet.dispatcher.module
+    shared = fleet.world
+
+    async def place(room: str) -> str:
+        new = NewOrder.model_validate(
+            {"room": room, "drink": BOARD.web.drinks[0], "name": "Ada"}, context=RULES
+        )
+        while True:
+            with contextlib.suppress(Exception):
+                placed = await orders.place(new, "test")
+                run.orders[placed.id] = placed.status
+                return placed.id
+            await asyncio.sleep(0.05)  # the dispatcher is still starting
+
+    clock = fleet.dispatcher.board.clock
+    await place("211")
+    await place("213")
+    started = time.monotonic()
+    while True:
+        with shared.lock:
+            run.samples.append(Sample(clock.now(), [pose_of(sim.robot) for sim in fleet.sims]))
+        for order_id in run.orders:
+            times = staff.orders.get(order_id)
+            if times is not None:
+                run.orders[order_id] = times.status
+        if all(s.final for s in run.orders.values()):
+            run.ended = "every order ended"
+            break
+        if clock.now() > TIME_LIMIT_S or time.monotonic() - started > WALL_LIMIT_S:
+            run.ended = f"time limit at {clock.now():.0f} s"
+            break
+        await clock.sleep(SAMPLE_S)
+    for sim in fleet.sims:
+        run.contacts += [f"{sim.robot.name}: {c}" for c in sim.robot.collisions]
+    return run
+
+
+@pytest_asyncio.fixture(scope="module", loop_scope="module")
+async def fleet_run() -> AsyncIterator[FleetRun]:
+    names = robot_ids(2)
+    staff = StaffModule(Staff(load_after_s=3.0, pickup_after_s=5.0))
+    with mosquitto(names) as broker:
+        async with build_fleet_sim(
+            BOARD,
+            PLAN,
+            2,
+            broker.address,
+            broker.credentials,
+            speed=math.inf,
+            web=False,
+            dispatcher_extra=[staff],
+        ) as fleet:
+            serving = asyncio.create_task(serve_fleet(fleet))
+            try:
+                yield await drive(fleet, staff)
+            finally:
+                fleet.request_stop("test over")
+                await asyncio.wait_for(serving, 60)
+
+
+@pytest.mark.asyncio(loop_scope="module")
+async def test_every_order_is_delivered_without_a_contact(fleet_run: FleetRun) -> None:
+    assert fleet_run.ended == "every order ended"
+    assert list(fleet_run.orders.values()) == [OrderStatus.DELIVERED] * 2
+    assert fleet_run.contacts == []
+
+
+@pytest.mark.asyncio(loop_scope="module")
+async def test_the_loading_spot_holds_one_robot_at_a_time(fleet_run: FleetRun) -> None:
+    planner = RoutePlanner(PLAN, BOARD.motion, BOARD.navigation, BOARD.geometry.width_mm)
+    base = PLAN.find_room(BOARD.navigation.base_room)
+    spot = planner.inside_point(
+        base.floor, base.door, base.door.recess_mm + BOARD.navigation.base_depth_mm
+    )
+    near = BOARD.geometry.width_mm / 2
+
+    def at_spot(pose: tuple[float, float, float, int]) -> bool:
+        return math.dist(pose[:2], spot) < near
+
+    visits = [sum(at_spot(p) for p in s.poses) for s in fleet_run.samples]
+    assert max(visits) == 1, "both robots stood on the loading spot at once"
+    loaded_by = {i for s in fleet_run.samples for i, p in enumerate(s.poses) if at_spot(p)}
+    assert loaded_by == {0, 1}, "one of the robots never loaded"
