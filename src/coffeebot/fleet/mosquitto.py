@@ -118,8 +118,13 @@ class Mosquitto:
         if self._process is not None:
             return
         with self._log.open("ab") as log:
+            # A session of its own: Ctrl-C at the demo reaches the daemons, which shut down
+            # in order and say goodbye, not the broker they say it through.
             self._process = subprocess.Popen(
-                [self._binary, "-c", str(self._config)], stdout=log, stderr=log
+                [self._binary, "-c", str(self._config)],
+                stdout=log,
+                stderr=log,
+                start_new_session=True,
             )
         deadline = time.monotonic() + START_TIMEOUT_S
         while time.monotonic() < deadline:
