@@ -13,11 +13,11 @@ from __future__ import annotations
 import asyncio
 import time
 from collections.abc import Callable
-from urllib.parse import urlparse
 
 import aiomqtt
 
 from coffeebot.board import Subscription
+from coffeebot.fleet.client import fleet_client
 from coffeebot.fleet.dispatcher import Announce, Dispatcher
 from coffeebot.fleet.mosquitto import Credentials
 from coffeebot.fleet.protocol import (
@@ -63,7 +63,6 @@ MakeDispatcher = Callable[[Send, Announce, Callable[[], float]], Dispatcher]
 
 TICK_S = 1.0
 """How often time-driven rules run (stale robots, resends, assignment)."""
-KEEPALIVE_S = 5
 CONNECTED, DISCONNECTED = "connected", "disconnected"
 
 
@@ -81,9 +80,7 @@ class DispatcherModule(Module):
     ) -> None:
         """``make(send, announce, now)`` builds the :class:`Dispatcher` once the board and
         the clock are there."""
-        url = urlparse(broker)
         self.broker = broker
-        self.host, self.port = url.hostname or "localhost", url.port or 1883
         self.credentials = credentials
         self.make = make
         self.store = store
@@ -189,17 +186,10 @@ class DispatcherModule(Module):
         self, ctx: ModuleContext, dispatcher: Dispatcher, link: Transitions
     ) -> None:
         backoff = Backoff(0.5, 10.0)
-        broken = encode(Connection(state=ConnectionState.CONNECTION_BROKEN, at_s=time.time()))
         while True:
             try:
-                async with aiomqtt.Client(
-                    self.host,
-                    self.port,
-                    username=self.credentials.username,
-                    password=self.credentials.password,
-                    identifier="coffeebot-dispatcher",
-                    keepalive=KEEPALIVE_S,
-                    will=aiomqtt.Will(DISPATCHER_CONNECTION, broken, qos=1, retain=True),
+                async with fleet_client(
+                    self.broker, self.credentials, "coffeebot-dispatcher", DISPATCHER_CONNECTION
                 ) as client:
                     online = Connection(state=ConnectionState.ONLINE, at_s=time.time())
                     await client.publish(DISPATCHER_CONNECTION, encode(online), qos=1, retain=True)

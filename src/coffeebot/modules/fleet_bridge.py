@@ -27,13 +27,13 @@ from collections import deque
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from typing import TypeVar
-from urllib.parse import urlparse
 
 import aiomqtt
 from pydantic import BaseModel
 
 from coffeebot.board import Subscription
 from coffeebot.config import RobotConfig
+from coffeebot.fleet.client import fleet_client
 from coffeebot.fleet.mosquitto import Credentials
 from coffeebot.fleet.protocol import (
     DISPATCHER_TO_ROBOT,
@@ -83,9 +83,6 @@ from coffeebot.messages import (
 from coffeebot.modules.backoff import Backoff
 from coffeebot.modules.base import Module, ModuleContext
 
-KEEPALIVE_S = 5
-"""MQTT keep-alive: the broker publishes the last will this long (x1.5) after a robot
-falls silent."""
 CONNECTED, DISCONNECTED = "connected", "disconnected"
 _WORSE = [
     HealthStatus.RUNNING,
@@ -133,9 +130,6 @@ class FleetBridge(Module):
     def __init__(self, config: RobotConfig, credentials: Credentials | None = None) -> None:
         self.robot = config.robot_id
         self.cfg = config.fleet
-        url = urlparse(config.fleet.broker)
-        self.host = url.hostname or "localhost"
-        self.port = url.port or 1883
         self.credentials = credentials or credentials_from_env(self.robot)
         self.counters = BridgeCounters()
         self._outbox: deque[DeliveryReport] = deque()
@@ -180,17 +174,13 @@ class FleetBridge(Module):
 
     async def _connect_forever(self, ctx: ModuleContext) -> None:
         backoff = Backoff(0.5, self.cfg.reconnect_max_s)
-        broken = encode(Connection(state=ConnectionState.CONNECTION_BROKEN, at_s=time.time()))
         while True:
             try:
-                async with aiomqtt.Client(
-                    self.host,
-                    self.port,
-                    username=self.credentials.username,
-                    password=self.credentials.password,
-                    identifier=f"coffeebot-{self.robot}",
-                    keepalive=KEEPALIVE_S,
-                    will=aiomqtt.Will(self.topic("connection"), broken, qos=1, retain=True),
+                async with fleet_client(
+                    self.cfg.broker,
+                    self.credentials,
+                    f"coffeebot-{self.robot}",
+                    self.topic("connection"),
                 ) as client:
                     await self._online(ctx, client)
                     backoff.reset()
