@@ -143,3 +143,21 @@ async def test_sensor_not_ready_in_time(board: Board, hw: SimTofHardware) -> Non
     hw.sensors[7 - 6].halt()
     *_, scan = await scans(board, 2)
     assert scan.readings[6].status is ReadingStatus.NOT_READY
+
+
+async def test_a_sensor_that_stopped_ranging_is_reinitialised(
+    board: Board, hw: SimTofHardware, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A sensor that answers but never has a new sample (it stopped ranging, as after a
+    brown-out) is a fault the operator hears of, and it is re-initialised: nothing else
+    starts it again."""
+    caplog.set_level(logging.INFO)
+    await scans(board, 2)
+    hw.sensors[7 - 6].halt()
+    got = await scans(board, 40)  # 1.6 s at 25 Hz
+    assert any(s.readings[6].status is ReadingStatus.BUS_ERROR for s in got)
+    assert by_sensor(got[-1])[6] == (ReadingStatus.VALID, 1001)
+    [fault] = events(caplog, "fault")
+    assert fault.subject == "tof6" and "stopped ranging" in fault.cause
+    [recovered] = events(caplog, "recovered")
+    assert recovered.subject == "tof6"

@@ -32,6 +32,7 @@ from coffeebot.messages import (
 )
 from coffeebot.modules.navigation import NavigationModule
 from coffeebot.navigation.route import RoutePlanner
+from coffeebot.sim.crash import CrashSwitch
 from manual_clock import ManualClock
 
 PLANNER = RoutePlanner(PLAN, CONFIG.motion, CONFIG.navigation, CONFIG.geometry.width_mm)
@@ -233,3 +234,34 @@ async def test_silent_motor_controller_is_the_orders_reason_at_once(rig) -> None
         (OrderStatus.FAILED, DeliveryProblem.MOTOR_CONTROLLER)
     ]
     await stop([motion])
+
+
+async def test_a_crash_on_the_way_does_not_strand_the_order(rig) -> None:
+    """Navigation crashing in the middle of a delivery is restarted by the supervisor, and
+    the delivery goes on from where the robot is: the order is not left "on the way" with
+    nobody driving it."""
+    clock, board, daemon, statuses = rig
+    navigation = daemon.states["navigation"].module
+    switch = CrashSwitch(navigation)
+    stand = Stand(board, elevator=True)
+    held = asyncio.create_task(held_by_silent_motors(board))  # on the way, not getting there
+    await daemon.start()
+    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o7", room="205", drink="tea"))
+    await clock.advance(1.0)
+    board.publish(OPERATOR_EVENT, OperatorEvent(kind="cup_loaded", order_id="o7"))
+    await clock.advance(2.0)
+    assert drain(statuses)[-1] is OrderStatus.ON_THE_WAY
+    await stop([held])
+    tasks = [asyncio.create_task(stand.motion()), asyncio.create_task(stand.lift())]
+    switch.trip("a bug")
+    await clock.advance(CONFIG.supervision.restart_backoff_s + 2.0)
+    assert daemon.states["navigation"].restarts == 1
+    seen = [e.msg for e in iter(statuses.get_nowait, None)]
+    assert seen[0].status is OrderStatus.ON_THE_WAY
+    assert seen[0].detail == "going on to 205 after a restart of navigation"
+    assert seen[-1].status is OrderStatus.ARRIVED
+    board.publish(OPERATOR_EVENT, OperatorEvent(kind="pickup_confirmed", order_id="o7"))
+    await clock.advance(5.0)
+    assert drain(statuses) == [OrderStatus.DELIVERED]
+    assert board.latest(MOVE_INSTRUCTION).msg.action == "stop"  # home and parked
+    await stop(tasks)

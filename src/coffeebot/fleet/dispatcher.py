@@ -97,7 +97,6 @@ class RobotRecord:
         return self.stale_since_s is not None
 
 
-
 class Announce(Protocol):
     def __call__(self, order: Order, cause: str, report: DeliveryReport | None = None) -> None:
         """Tell the web a stored change; ``report``: the robot's, when it came from one."""

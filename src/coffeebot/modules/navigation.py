@@ -45,13 +45,14 @@ from coffeebot.messages import (
     MoveInstruction,
     OperatorEvent,
     OrderDispatch,
+    OrderStatus,
     PlannedRoute,
     PoseEstimate,
     SharedPlace,
     StopCause,
 )
 from coffeebot.modules.base import Module, ModuleContext
-from coffeebot.navigation.lifecycle import DeliveryLifecycle
+from coffeebot.navigation.lifecycle import MOVING, DeliveryLifecycle
 from coffeebot.navigation.path import route_legs
 from coffeebot.navigation.route import ElevatorRide, Lease, Move, Route, RoutePlanner, Step
 
@@ -364,27 +365,33 @@ class NavigationModule(Module):
         return route
 
     async def _serve(self, ctx: ModuleContext, life: DeliveryLifecycle) -> None:
+        """The delivery from wherever ``life`` stands: from the start, or (after a restart)
+        on the way, at the door."""
         nav = self.nav
-        if self.fleet:  # from its parking spot onto the loading spot, which it then holds
-            await self._drive(ctx, self.planner.loading())
-        self._report(ctx, life.ready_for_cup())
-        if not await self._wait_for(ctx, self._event("cup_loaded").is_set, nav.loading_timeout_s):
-            self._report(
-                ctx,
-                life.fail(
-                    f"the cup was not loaded within {nav.loading_timeout_s:.0f} s",
-                    DeliveryProblem.CUP_NOT_LOADED,
-                ),
-            )
+        if not life.left_base:
+            if self.fleet:  # from its parking spot onto the loading spot, which it then holds
+                await self._drive(ctx, self.planner.loading())
+            self._report(ctx, life.ready_for_cup())
+            if not await self._wait_for(
+                ctx, self._event("cup_loaded").is_set, nav.loading_timeout_s
+            ):
+                self._report(
+                    ctx,
+                    life.fail(
+                        f"the cup was not loaded within {nav.loading_timeout_s:.0f} s",
+                        DeliveryProblem.CUP_NOT_LOADED,
+                    ),
+                )
+                return
+            route = self._route_to(ctx, life.room)  # raises before leaving if the room is unknown
+            self._report(ctx, life.cup_loaded())
+            await self._drive(ctx, route.steps)
+        elif life.status in MOVING:  # resumed on the way: from where the robot is now
+            await self._drive(ctx, self._route_to(ctx, life.room).steps)
+        if life.status in MOVING:
+            self._arrived(ctx, life)
+        if life.status is not OrderStatus.ARRIVED:
             return
-        route = self._route_to(ctx, life.room)  # raises before leaving if the room is unknown
-        self._report(ctx, life.cup_loaded())
-        await self._drive(ctx, route.steps)
-        status = ctx.board.latest(MOTION_STATUS)
-        detail = f"at the door of {life.room}"
-        if status is not None and status.msg.remaining_mm is not None:
-            detail += f" ({-status.msg.remaining_mm:+.0f} mm)"
-        self._report(ctx, life.arrived(detail))
         picked = await self._wait_for(
             ctx, self._event("pickup_confirmed").is_set, nav.pickup_timeout_s
         )
@@ -399,6 +406,13 @@ class NavigationModule(Module):
                     DeliveryProblem.NOT_PICKED_UP,
                 ),
             )
+
+    def _arrived(self, ctx: ModuleContext, life: DeliveryLifecycle) -> None:
+        status = ctx.board.latest(MOTION_STATUS)
+        detail = f"at the door of {life.room}"
+        if status is not None and status.msg.remaining_mm is not None:
+            detail += f" ({-status.msg.remaining_mm:+.0f} mm)"
+        self._report(ctx, life.arrived(detail))
 
     async def _deliver(self, ctx: ModuleContext, dispatch: OrderDispatch) -> None:
         self._handled.add(dispatch.order_id)
@@ -415,6 +429,11 @@ class NavigationModule(Module):
                 ),
             )
             return
+        await self._carry_on(ctx, life)
+
+    async def _carry_on(self, ctx: ModuleContext, life: DeliveryLifecycle) -> None:
+        """Serve ``life`` to its end and bring the robot back (also after a restart of this
+        module in the middle of it: the delivery goes on from where it was)."""
         self._task = asyncio.create_task(self._serve(ctx, life))
         try:
             await self._task
@@ -448,6 +467,11 @@ class NavigationModule(Module):
             self._instruct(ctx, MoveInstruction(action="stop", detail="waiting for an order"))
             async with asyncio.TaskGroup() as group:
                 group.create_task(self._pump(ctx, operator))
+                life = self._life
+                if life is not None:  # restarted (after a crash) in the middle of a delivery
+                    ctx.log.warning("restarted during the delivery of %s: going on", life.order_id)
+                    self._progress(ctx, f"going on to {life.room} after a restart of navigation")
+                    await self._carry_on(ctx, life)
                 # A dispatch published before this module subscribed is only in ``latest``.
                 pending = ctx.board.latest(ORDER_DISPATCH)
                 if pending is not None and pending.msg.order_id not in self._handled:

@@ -2,7 +2,9 @@
 
 Each sensor is independent: an ``OSError`` from one (a NACK, a bus timeout, a wrong model id)
 marks that sensor unhealthy in the scan and on the health topic and schedules its
-re-initialisation with backoff, while the others keep being read in the same cycle. A sensor
+re-initialisation with backoff, while the others keep being read in the same cycle. So does a
+sensor that answers but has had no new sample for ``STALE_PERIODS`` sample periods (it stopped
+ranging, as after a brown-out): only a re-initialisation starts it again. A sensor
 going unhealthy is logged once as ``event=fault`` with the error, and once as
 ``event=recovered`` when it is re-initialised, however many retries that took.
 """
@@ -33,6 +35,9 @@ from coffeebot.modules.base import Module, ModuleContext
 
 DISTANCE_MODES = {"short": DistanceMode.SHORT, "long": DistanceMode.LONG}
 HEALTHY, FAILED = "healthy", "failed"
+STALE_PERIODS = 25
+"""A sensor with no new sample for this many sample periods (0.5 s at 20 ms) has stopped
+ranging: it is re-initialised."""
 
 
 @dataclass
@@ -46,6 +51,8 @@ class SensorSlot:
     retry_at: float = 0.0
     failures: int = 0
     error: str = "not initialised"
+    last_sample_s: float = 0.0
+    """When its last new sample was read (or it was brought up)."""
 
     @property
     def component(self) -> str:
@@ -131,12 +138,21 @@ class TofPoller(Module):
                     readings[slot.cfg.id] = _failed(slot)
                 elif result is not None:
                     readings[slot.cfg.id] = result
+                    slot.last_sample_s = start
             pending = [s for s in pending if s.cfg.id not in readings]
             if pending and clock.now() >= deadline:
                 for slot in pending:
                     readings[slot.cfg.id] = RangeReading(
                         sensor=slot.cfg.id, status=ReadingStatus.NOT_READY
                     )
+                    silent_s = start - slot.last_sample_s
+                    if silent_s >= STALE_PERIODS * self.sample_period_ms / 1000.0:
+                        self._mark_failed(
+                            ctx,
+                            slot,
+                            OSError(f"no new sample for {silent_s:.1f} s: stopped ranging"),
+                        )
+                        readings[slot.cfg.id] = _failed(slot)
                 break
             if pending:
                 await clock.sleep(self.poll_interval_s)
@@ -201,6 +217,7 @@ class TofPoller(Module):
             self._mark_failed(ctx, slot, exc)
             return
         slot.healthy = True
+        slot.last_sample_s = ctx.clock.now()
         slot.backoff.reset()
         self._transition(slot, HEALTHY, Event.RECOVERED, "re-initialised")
         self._report(ctx, slot, HealthStatus.RUNNING, f"mux channel {slot.cfg.channel}")

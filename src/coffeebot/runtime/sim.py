@@ -18,6 +18,7 @@ from coffeebot.floorplan import FloorPlan
 from coffeebot.messages import PoseEstimate
 from coffeebot.modules.base import Module
 from coffeebot.runtime.assemble import Runtime, assemble
+from coffeebot.sim.crash import crash_switches
 from coffeebot.sim.rundir import run_directory
 from coffeebot.sim.simulation import SimElevatorLink, SimSetup, Simulation
 from coffeebot.sim.stepper import SimWorld
@@ -94,6 +95,8 @@ async def build_sim(
             extra=None if extra is None else lambda runtime: extra(runtime, sim),
             web=web,
         )
+        switches = crash_switches(runtime.daemon.modules, sim.crashing_modules())
+        sim.crashes = {name: switch.trip for name, switch in switches.items()}
         # The world runs from before the daemon's self-check until after its shutdown.
         world_task = asyncio.create_task(shared.run(), name="simulated world")
         world_task.add_done_callback(functools.partial(_world_ended, runtime))

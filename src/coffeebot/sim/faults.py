@@ -1,9 +1,12 @@
 """Faults a scenario injects into the simulated devices, each over a window of simulated time.
 
-Each fault drives the fault hooks the simulated chips already have (a NACKing sensor, an
-unplugged or babbling UWB tag, a hung motor controller, an elevator that does not answer) or
-the order database's (:mod:`coffeebot.sim.store`: locked, read only, full), so the daemon
-meets them through its real drivers and its real store, exactly as it would on the robot.
+Each fault drives the fault hooks the simulated chips already have (a NACKing sensor, one
+that stops ranging, an unplugged or babbling UWB tag, a hung, babbling or unplugged motor
+controller, an elevator that does not answer) or the order database's
+(:mod:`coffeebot.sim.store`: locked, read only, full), so the daemon meets them through its
+real drivers and its real store, exactly as it would on the robot. A module crash raises an
+exception inside one of the daemon's modules, where it is at that moment
+(:meth:`Simulation.crash_module`), as a bug would.
 """
 
 from __future__ import annotations
@@ -91,6 +94,27 @@ class SensorNack(_Fault):
         sim.tof.sensors[sim.sensor_channel[self.sensor]].nack = False
 
 
+class SensorStale(_Fault):
+    """ToF sensor ``sensor`` stops ranging without a word (a brown-out): it still answers on
+    the bus, but no new sample is ever ready. Until the fault ends, re-initialising it does
+    not help; after, a re-initialisation brings it back (nothing else does)."""
+
+    kind: Literal["sensor_stale"]
+    sensor: int = Field(ge=0, le=7, description="sensor id as in the board file")
+
+    def describe(self) -> str:
+        return f"tof{self.sensor} stops ranging"
+
+    def begin(self, sim: Simulation) -> None:
+        self.during(sim)
+
+    def during(self, sim: Simulation) -> None:
+        sim.tof.sensors[sim.sensor_channel[self.sensor]].halt()
+
+    def end(self, sim: Simulation) -> None:
+        """Nothing to undo: the chip ranges again once it is re-initialised."""
+
+
 class UwbGarbage(_Fault):
     """The UWB line carries random bytes between the tag's lines."""
 
@@ -145,6 +169,48 @@ class MotorSilent(_Fault):
 
     def end(self, sim: Simulation) -> None:
         sim.motor.silent = False
+
+
+class MotorGarbage(_Fault):
+    """The motor controller's line carries random bytes between its telemetry lines."""
+
+    kind: Literal["motor_garbage"]
+    bytes_per_burst: int = Field(40, gt=0)
+    seed: int = 0
+    _rng: random.Random = PrivateAttr(default_factory=random.Random)
+    _next: float = PrivateAttr(0.0)
+
+    def describe(self) -> str:
+        return f"motor line noise, {self.bytes_per_burst} bytes every {GARBAGE_PERIOD_S:g} s"
+
+    def begin(self, sim: Simulation) -> None:
+        self._rng.seed(self.seed)
+        self._next = sim.t_s
+        self.during(sim)
+
+    def during(self, sim: Simulation) -> None:
+        if sim.t_s >= self._next:
+            self._next += GARBAGE_PERIOD_S
+            sim.motor.inject(self._rng.randbytes(self.bytes_per_burst))
+
+    def end(self, sim: Simulation) -> None:
+        """Nothing to undo: the noise simply stops."""
+
+
+class MotorUnplug(_Fault):
+    """The motor controller's USB cable is pulled (and pushed back at ``to_s``, when the
+    controller boots afresh)."""
+
+    kind: Literal["motor_unplug"]
+
+    def describe(self) -> str:
+        return "motor controller unplugged"
+
+    def begin(self, sim: Simulation) -> None:
+        sim.motor.unplug()
+
+    def end(self, sim: Simulation) -> None:
+        sim.motor.replug()
 
 
 class ElevatorSilent(_Fault):
@@ -221,12 +287,33 @@ class StoreFull(_Fault):
         _store(sim).full = False
 
 
+class ModuleCrash(_Fault):
+    """Module ``module`` raises an exception wherever it is (a bug): the supervisor's turn.
+    Once, at ``from_s``; ``to_s`` only bounds the record."""
+
+    kind: Literal["module_crash"]
+    module: str = Field(min_length=1, description="a module's name, as on the health topic")
+
+    def describe(self) -> str:
+        return f"module {self.module} crashes"
+
+    def begin(self, sim: Simulation) -> None:
+        sim.crash_module(self.module, f"simulated crash at {sim.t_s:.3f} s")
+
+    def end(self, sim: Simulation) -> None:
+        """Nothing to undo: the supervisor restarts the module."""
+
+
 Fault = Annotated[
     SensorNack
+    | SensorStale
     | UwbGarbage
     | UwbUnplug
     | MotorSilent
+    | MotorGarbage
+    | MotorUnplug
     | ElevatorSilent
+    | ModuleCrash
     | StoreLocked
     | StoreReadOnly
     | StoreFull,

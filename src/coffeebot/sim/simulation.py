@@ -18,7 +18,7 @@ from __future__ import annotations
 import contextlib
 import math
 import threading
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 from coffeebot.clock import Clock
@@ -28,7 +28,7 @@ from coffeebot.hardware.serial_port import SerialPort
 from coffeebot.hardware.vl53l1x import SpadRoi
 from coffeebot.messages import ElevatorRequest, ElevatorState, UwbFix
 from coffeebot.sim.dwm1001 import SimDwm1001
-from coffeebot.sim.faults import Fault, FaultRecord
+from coffeebot.sim.faults import Fault, FaultRecord, ModuleCrash
 from coffeebot.sim.i2c import make_tof_hardware
 from coffeebot.sim.motor_controller import DriveSample, SimMotorController
 from coffeebot.sim.serial_line import MemoryLine
@@ -106,6 +106,9 @@ class Simulation:
         self.store = store
         """The order database the store faults act on (None: a run without one)."""
         self.faults = [fault.model_copy() for fault in faults]  # each run starts afresh
+        self.crashes: dict[str, Callable[[str], None]] = {}
+        """Module name to what makes it crash (set up by whoever runs the daemon, for the
+        ``module_crash`` faults)."""
         self.truth = TruthLog()
         clock, world = shared.clock, shared.world
         by_id = sorted(config.tof.sensors, key=lambda s: s.id)
@@ -188,6 +191,17 @@ class Simulation:
             record = fault.update(self)
             if record is not None:
                 self.truth.faults.append(record)
+
+    def crash_module(self, name: str, why: str) -> None:
+        """Make module ``name`` raise where it is (the ``module_crash`` fault)."""
+        crash = self.crashes.get(name)
+        if crash is None:
+            raise RuntimeError(f"module {name!r} cannot be crashed in this run")
+        crash(why)
+
+    def crashing_modules(self) -> set[str]:
+        """The modules this run's faults crash."""
+        return {f.module for f in self.faults if isinstance(f, ModuleCrash)}
 
     def place_robot(self, pose: Pose, floor: int | None = None) -> None:
         """Move the robot without driving: the start of a run."""
