@@ -668,7 +668,7 @@ def _object_velocity(world: World, index: int, t_s: float) -> tuple[float, float
 
 def _element(world: World, collision: Any) -> Surfaces:
     """The touched element's surfaces at the moment of the touch."""
-    everything = world.surfaces(collision.t_s)
+    everything = world.surfaces(collision.floor, collision.t_s)
     return everything.take(
         np.flatnonzero(np.array(everything.segment_ids, dtype=object) == collision.element),
         np.flatnonzero(np.array(everything.cylinder_ids, dtype=object) == collision.element),
