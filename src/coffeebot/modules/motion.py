@@ -130,7 +130,11 @@ class MotionModule(Module):
             axle_x_mm=config.motor.axle_x_mm,
         )
         self.costmap = LocalCostmap(
-            self.cfg, config.tof.sensors, self.footprint, config.tof.cone_half_deg
+            self.cfg,
+            config.tof.sensors,
+            self.footprint,
+            config.tof.cone_half_deg,
+            narrow=config.collision,
         )
         self.controller = MotionController(self.cfg, plan, self.costmap, self.footprint)
         self.collision_health: HealthStatus | None = None
