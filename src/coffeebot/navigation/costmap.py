@@ -27,8 +27,9 @@ narrow_margin_mm`` more clearance in every gap the planners ask for, and is plac
 near end of the reading's spread, as the collision monitor judges it. What
 stands on a pole often spreads out above the cones: a swivel chair's seat overhangs its pole
 by ~240 mm where the body is, so a go-around planned on the pole alone swings a front corner
-into the seat. The flag holds while the cell stays occupied: up close, or turned, the pole
-may no longer read narrow, and the seat is still there.
+into the seat. A cell a pole's return marked keeps the margin whenever it is occupied for
+``obstacle_memory_s`` after: the same pole, seen closer or turned, may read as part of
+something wider, or blend, and mark the cell again, and the seat is still there.
 
 Each cell also remembers since when it has been continuously occupied: an obstacle whose
 nearest cells have stood for ``static_confirm_s`` is static; a walking person keeps producing
@@ -121,8 +122,8 @@ class LocalCostmap:
         self.hit_t = np.full((self.n, self.n), -math.inf)
         self.clear_t = np.full((self.n, self.n), -math.inf)
         self.since_t = np.full((self.n, self.n), math.inf)
-        self.narrow = np.zeros((self.n, self.n), dtype=bool)
-        """Cells marked by a narrow return while they have been occupied."""
+        self.pole_t = np.full((self.n, self.n), -math.inf)
+        """When a pole's return last marked each cell."""
 
     # --- grid ------------------------------------------------------------------------------
 
@@ -133,7 +134,7 @@ class LocalCostmap:
         self.hit_t.fill(-math.inf)
         self.clear_t.fill(-math.inf)
         self.since_t.fill(math.inf)
-        self.narrow.fill(False)
+        self.pole_t.fill(-math.inf)
 
     def _recentre(self, floor: Floor, x_mm: float, y_mm: float) -> None:
         """Keep the robot in the middle half of the window, shifting cells by whole cells."""
@@ -146,11 +147,11 @@ class LocalCostmap:
             return
         shift_i = round((x_mm - cx) / self.res)
         shift_j = round((y_mm - cy) / self.res)
-        grids: tuple[tuple[np.ndarray, float | bool], ...] = (
+        grids: tuple[tuple[np.ndarray, float], ...] = (
             (self.hit_t, -math.inf),
             (self.clear_t, -math.inf),
             (self.since_t, math.inf),
-            (self.narrow, False),
+            (self.pole_t, -math.inf),
         )
         for grid, fill in grids:
             moved = np.full_like(grid, fill)
@@ -227,9 +228,8 @@ class LocalCostmap:
             i, j = self._cells(hx, hy)
             fresh = ~self._occupied_at(i, j, now)
             self.since_t[i[fresh], j[fresh]] = now
-            self.narrow[i[fresh], j[fresh]] = False
             if sensor.id in narrow:
-                self.narrow[i, j] = True
+                self.pole_t[i, j] = now
             self.hit_t[i, j] = now
 
     def _explained(
@@ -295,7 +295,8 @@ class LocalCostmap:
         """Per occupied cell, in the order of :meth:`obstacles`: the clearance it needs beyond
         everything else's (``narrow_margin_mm`` for a narrow return's cell, else 0)."""
         i, j = self._occupied(now)
-        return np.where(self.narrow[i, j], self.narrow_margin_mm, 0.0)
+        pole = now - self.pole_t[i, j] <= self.cfg.obstacle_memory_s
+        return np.where(pole, self.narrow_margin_mm, 0.0)
 
     # --- cost queries ----------------------------------------------------------------------
 
