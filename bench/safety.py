@@ -43,10 +43,11 @@ verdicts per 100 m of empty hallway, stops of an idle robot over 120 simulated s
 how long a robot standing in front of a static obstacle with a way out stays put before it
 moves or reports "blocked".
 
-Everything is timed in the simulated world's time. The daemon runs on a clock scaled from the
-machine's (``--speed``), so a machine too busy to keep up delays the daemon in simulated time
-too; every run counts the gaps longer than ``STALL_S`` between two collision verdicts, and
-docs/safety.md has the load check.
+Everything is timed in the simulated world's time. The world steps only once the daemon has
+settled (``coffeebot.lockstep``), so a run depends on its seed alone, not on how busy the
+machine is; ``--speed`` only paces it. Every run still counts the gaps longer than
+``STALL_S`` between two collision verdicts: with the lockstep none comes from a busy machine,
+so one would be a fault in the chain from the sensors to the verdict.
 """
 
 from __future__ import annotations
@@ -139,8 +140,8 @@ CONTACT_MERGE_S = 1.0
 BRAKE_STEP_MM_S = 2.0
 """A command this much slower than the one before starts the braking (below: rounding)."""
 STALL_S = 0.1
-"""A gap this long between two collision verdicts (five scan periods) is the daemon starved
-of time: on a loaded machine the scans come late in simulated time too."""
+"""A gap this long between two collision verdicts (five scan periods) is a gap in the chain
+from the sensors to the verdict (in lockstep, never a busy machine)."""
 PATH_DEPTH_MM = 6000.0
 """The body's path ahead, for where an obstacle entered it."""
 HELD_LIMIT_S = 60.0
@@ -511,7 +512,7 @@ class Record:
         return next((s[0] for s in self.samples if abs(s[4]) >= STAND_MM_S), math.inf)
 
     def stall_fields(self) -> dict[str, Any]:
-        """How often, and for how long at most, the daemon was starved of time."""
+        """How often, and for how long at most, the collision verdicts had a gap."""
         longest = max((gap for _, gap in self.stalls), default=0.0)
         return {"stalls": len(self.stalls), "longest_stall_ms": round(longest * 1000.0)}
 
@@ -668,7 +669,7 @@ def _object_velocity(world: World, index: int, t_s: float) -> tuple[float, float
 
 def _element(world: World, collision: Any) -> Surfaces:
     """The touched element's surfaces at the moment of the touch."""
-    everything = world.surfaces(collision.t_s)
+    everything = world.surfaces(collision.floor, collision.t_s)
     return everything.take(
         np.flatnonzero(np.array(everything.segment_ids, dtype=object) == collision.element),
         np.flatnonzero(np.array(everything.cylinder_ids, dtype=object) == collision.element),
@@ -1212,7 +1213,7 @@ def _cell(row: dict[str, Any]) -> str:
     elif row["stop_latency_ms"] is not None:
         text += f", {row['stop_latency_ms']:.0f} ms"
     if row["starved_in_reaction"]:
-        text += " (starved)"
+        text += " (verdict gap)"
     return text + (" (slowed before)" if slowed_before(row) else "")
 
 
@@ -1242,13 +1243,13 @@ def table(result: dict[str, Any]) -> str:
         f"| stops of an idle robot ({len(result['idle'])} x {IDLE_S:.0f} s) | "
         f"{result['idle_stops']} | 0 |",
         f"| held with a way out, longest | {result['held_with_way_out_s_max']} s | <= 10 s |",
-        f"| runs in which the daemon was starved (verdicts {STALL_S * 1000:.0f}+ ms apart) | "
+        f"| runs with a gap in the collision verdicts ({STALL_S * 1000:.0f}+ ms) | "
         f"{result['stalled_runs']}, longest gap {result['longest_stall_ms']} ms | 0 |",
         "",
         "Per case and robot speed: the first robot-caused contact (where on the body, "
         "relative speed) or the least clearance, then the stop latency (from visible and in "
         "the protective field to the first braking command) where the obstacle became a "
-        "hazard; (starved): a gap in the verdicts overlapped that reaction; (slowed before): "
+        "hazard; (verdict gap): a gap in the verdicts overlapped that reaction; (slowed before): "
         "the robot was below 90 % of its speed when the walk began.",
         "",
         "| case | " + " | ".join(f"{v:.0f} mm/s" for v in speeds) + " |",

@@ -318,6 +318,34 @@ class TrackingConfig(Section):
     )
 
 
+class OpeningsConfig(Section):
+    """Slow zones at the floor plan's openings (navigation/openings.py).
+
+    The cones see along the hallway, not round the corner of a side hallway: someone walking
+    out of one is seen only once past the wall line, and the wedge between the outer front
+    cone and the side cone (33.5 to 76.5 degrees off the axis) leaves part of the mouth
+    unseen even then. So near an opening the robot goes no faster than it can stand from
+    before someone who steps out where the cones first see the wall line, and walks straight
+    at its front at ``walking_speed_mm_s``, reaches it: ``v t + v^2/2a + K (t + v/a) <= D -
+    margin``, with the collision config's reaction latency ``t``, braking ``a`` and margin.
+    ``D`` is from the front face's corner to the nearest point of the mouth the outer front
+    cone on that side sees (where its edge meets the wall line: 0.58 m ahead for a mouth 300
+    mm beside the body, 1.47 m for one across the hallway). Keeping right, the cap is
+    117 mm/s beside an opening on the right and 371 mm/s across from one on the left; it
+    rises with the distance to the mouth ahead and ends once the front is past it."""
+
+    slow_zones: bool = Field(
+        True, description="cap the speed near openings (off: only the collision rules slow)"
+    )
+    walking_speed_mm_s: float = Field(
+        1600.0,
+        gt=0,
+        le=SPEED_MM_S,
+        description="how fast someone may come out of an opening at the robot: ISO 13855's "
+        "walking approach speed for separation distances",
+    )
+
+
 class AngleConfig(Section):
     """Seed 000 angle correction from a side's sensor pair, with the door-straddle checks."""
 
@@ -987,6 +1015,7 @@ class RobotConfig(Section):
     geometry: GeometryConfig = GeometryConfig()
     collision: CollisionConfig = CollisionConfig()
     tracking: TrackingConfig = TrackingConfig()
+    openings: OpeningsConfig = OpeningsConfig()
     angle: AngleConfig = AngleConfig()
     door: DoorConfig = DoorConfig()
     state: StateConfig = StateConfig()

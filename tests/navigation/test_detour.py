@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from helpers import CONFIG, PLAN
 
 from coffeebot.messages import RangeReading, RangeScan, ReadingStatus
 from coffeebot.modules.motion import MotionModule
+from coffeebot.navigation.costmap import LocalCostmap
 from coffeebot.navigation.detour import REJOIN_MM, Detour, DetourPlanner, Phase
+from coffeebot.navigation.dwa import rollout
 
 FLOOR = PLAN.floor(2)
 HALF_WIDTH = FLOOR.hallway.width_mm / 2
@@ -89,3 +92,137 @@ def test_a_new_obstacle_while_rejoining_is_judged_afresh() -> None:
     sighting = planner.update(FLOOR, START_S, LANE + 300, LANE, 1.0, avoid=False, now=3.0)
     assert sighting is not None
     assert planner.phase is Phase.CONFIRMING
+
+
+# --- narrow returns: a pole carries what the cones do not see --------------------------------
+
+MARGIN = CONFIG.collision.narrow_margin_mm
+
+
+def planner_seeing(readings_mm: dict[int, float], seen_for_s: float, narrow: bool) -> DetourPlanner:
+    """The detour of a robot at ``START_S`` in ``LANE`` whose front sensors have read
+    ``readings_mm`` (sensor id: distance; the others nothing) for ``seen_for_s`` seconds, on
+    a costmap that flags narrow returns or (``narrow`` False) one that does not."""
+    module = MotionModule(CONFIG, PLAN)
+    costmap = module.costmap
+    if not narrow:
+        costmap = LocalCostmap(
+            CONFIG.motion, CONFIG.tof.sensors, module.footprint, CONFIG.tof.cone_half_deg
+        )
+    x, y = FLOOR.from_hallway(START_S, LANE)
+    costmap.reset(FLOOR, x, y)
+    readings = [
+        RangeReading(sensor=s.id, status=ReadingStatus.VALID, distance_mm=readings_mm[s.id])
+        if s.id in readings_mm
+        else RangeReading(sensor=s.id, status=ReadingStatus.OUT_OF_BOUNDS)
+        for s in CONFIG.tof.sensors
+    ]
+    scan = RangeScan(cycle_start_s=0.0, cycle_time_s=0.05, readings=readings)
+    for t in np.arange(0.0, seen_for_s, 0.05):
+        costmap.update(scan, FLOOR, x, y, FLOOR.hallway.heading_deg, float(t))
+    return DetourPlanner(CONFIG.motion, costmap, module.footprint)
+
+
+def test_a_narrow_return_gets_the_narrow_margin_and_a_wide_one_does_not() -> None:
+    """What one front sensor sees while its neighbours see nothing is narrow (a pole, a leg):
+    its cells count ``narrow_margin_mm`` nearer in every gap the planners ask for. The
+    same distance read across all four front sensors is a wall of something: no margin."""
+    pole = planner_seeing({3: 900}, seen_for_s=0.5, narrow=True).costmap
+    plain = planner_seeing({3: 900}, seen_for_s=0.5, narrow=False).costmap
+    wide = planner_seeing(dict.fromkeys((2, 3, 4, 5), 900), seen_for_s=0.5, narrow=True).costmap
+    # Seen by the left half of the row only: the edge of something wide (a box in the
+    # left half of the lane) as well as a pole, so no margin either.
+    half = planner_seeing({4: 700, 5: 700}, seen_for_s=0.5, narrow=True).costmap
+    assert set(pole.margins(0.5)) == {MARGIN}
+    assert set(plain.margins(0.5)) == {0.0}
+    assert set(wide.margins(0.5)) == {0.0}
+    assert half.margins(0.5).size > 0 and set(half.margins(0.5)) == {0.0}
+    x, y = FLOOR.from_hallway(START_S, LANE)
+    pose = (np.array([x]), np.array([y]), np.array([np.radians(FLOOR.hallway.heading_deg)]))
+    gap_pole = pole.obstacle_gaps(*pose, now=0.5)[0]
+    gap_plain = plain.obstacle_gaps(*pose, now=0.5)[0]
+    assert gap_pole == pytest.approx(gap_plain - MARGIN)
+
+
+def test_a_narrow_return_is_placed_at_the_near_end_of_its_spread() -> None:
+    """A pole in front of a far wall reads beyond it with a large sigma: its cells go where
+    the collision monitor judges it, 1.5 sigmas nearer, so the margin is kept from the pole."""
+    module = MotionModule(CONFIG, PLAN)
+    x, y = FLOOR.from_hallway(START_S, LANE)
+    module.costmap.reset(FLOOR, x, y)
+    readings = [
+        RangeReading(sensor=3, status=ReadingStatus.VALID, distance_mm=1100, sigma_mm=100.0)
+    ] + [
+        RangeReading(sensor=s.id, status=ReadingStatus.OUT_OF_BOUNDS)
+        for s in CONFIG.tof.sensors
+        if s.id != 3
+    ]
+    module.costmap.update(
+        RangeScan(cycle_start_s=0.0, cycle_time_s=0.05, readings=readings),
+        FLOOR,
+        x,
+        y,
+        FLOOR.hallway.heading_deg,
+        0.0,
+    )
+    xs, ys, _ = module.costmap.obstacles(0.0)
+    along = np.array([FLOOR.to_hallway(cx, cy)[0] for cx, cy in zip(xs, ys, strict=True)])
+    sensor = next(s for s in CONFIG.tof.sensors if s.id == 3)
+    nearest = along.min() - START_S - sensor.x_mm
+    assert 900 < nearest < 1000  # 1100 less 1.5 x 100, not 1100
+
+
+def test_a_detour_round_a_narrow_thing_keeps_the_overhang_margin() -> None:
+    """A swivel chair's pole in the lane: the lane past it is chosen clear of the pole by the
+    body, the clearance and the narrow margin (the seat overhangs the pole by ~240 mm), so
+    it lies at least the margin further out than past a thing of the pole's size alone; and
+    the body's rear must be past the pole by the margin before the robot rejoins."""
+    reading = {3: 1000}
+    narrow = planner_seeing(reading, seen_for_s=3.0, narrow=True)
+    plain = planner_seeing(reading, seen_for_s=3.0, narrow=False)
+    for planner in (narrow, plain):
+        planner.update(FLOOR, START_S, LANE, LANE, 1.0, avoid=True, now=3.0)
+    assert narrow.lane_mm is not None and plain.lane_mm is not None
+    assert narrow.lane_mm >= plain.lane_mm + MARGIN - CONFIG.motion.costmap_resolution_mm
+    xs, ys, _ = narrow.costmap.obstacles(3.0)
+    cells_d = np.array([FLOOR.to_hallway(cx, cy)[1] for cx, cy in zip(xs, ys, strict=True)])
+    body = CONFIG.geometry.width_mm / 2 + CONFIG.motion.obstacle_clearance_mm
+    assert np.all(np.abs(cells_d - narrow.lane_mm) >= body + MARGIN)
+    assert narrow.detour is not None and plain.detour is not None
+    assert narrow.detour.extent_s_mm is not None and plain.detour.extent_s_mm is not None
+    assert narrow.detour.extent_s_mm == pytest.approx(plain.detour.extent_s_mm + MARGIN)
+
+
+def test_a_pole_beside_the_lane_whose_seat_reaches_into_it_is_in_the_way() -> None:
+    """A pole just outside the lane's width (body plus clearance) is no obstacle to the body
+    going straight, but the seat it carries is: seen narrow, it is an obstacle ahead."""
+    sensor = next(s for s in CONFIG.tof.sensors if s.id == 3)  # the inner right one
+    reading = {3: 450}
+    narrow = planner_seeing(reading, seen_for_s=0.5, narrow=True)
+    plain = planner_seeing(reading, seen_for_s=0.5, narrow=False)
+    # Move the lane left until the plain return is just out of it.
+    xs, ys, _ = plain.costmap.obstacles(0.5)
+    cells_d = np.array([FLOOR.to_hallway(cx, cy)[1] for cx, cy in zip(xs, ys, strict=True)])
+    half = CONFIG.geometry.width_mm / 2 + CONFIG.motion.obstacle_clearance_mm
+    lane = float(cells_d.max()) + half + 10.0
+    assert sensor.yaw_deg < 0
+    assert plain.obstacle_ahead(FLOOR, START_S, lane, 1.0, 0.5) is None
+    sighting = narrow.obstacle_ahead(FLOOR, START_S, lane, 1.0, 0.5)
+    assert sighting is not None and sighting.margin_mm == MARGIN
+    assert sighting.near_edge(1.0) == pytest.approx(sighting.s_mm - MARGIN)
+
+
+def test_turning_out_keeps_the_front_corner_the_margin_from_a_pole() -> None:
+    """The corner sweep: turning on the spot swings a front corner forward. Past a pole
+    seen as narrow, a turn that keeps clear of the pole itself but not of what it carries is
+    refused; past the same return seen as part of something wide it is allowed."""
+    reading = {4: 420}
+    narrow = planner_seeing(reading, seen_for_s=0.5, narrow=True).costmap
+    plain = planner_seeing(reading, seen_for_s=0.5, narrow=False).costmap
+    x, y = FLOOR.from_hallway(START_S, LANE)
+    heading = np.radians(FLOOR.hallway.heading_deg)
+    times = np.linspace(0.0, np.radians(40.0), 7)
+    xs, ys, headings = rollout((x, y, heading), np.zeros(1), np.array([-1.0]), times, 150.0)
+    start = (x, y, heading)
+    assert plain.admissible(xs, ys, headings, start, 0.5, plain.body)[0][0]
+    assert not narrow.admissible(xs, ys, headings, start, 0.5, narrow.body)[0][0]

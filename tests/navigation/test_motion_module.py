@@ -269,3 +269,34 @@ async def test_held_with_no_way_past_reports_blocked_with_the_reason(rig: Rig) -
     assert status is not None and status.msg.state is MotionState.BLOCKED
     assert "front obstacle at 450 mm" in status.msg.detail
     assert wheels(rig) == (0.0, 0.0)
+
+
+async def test_a_slow_zone_at_an_opening_caps_the_command(rig: Rig) -> None:
+    """Driving back down the hallway with the side hallway's mouth beside the lane, the
+    command stays at the zone's cap, and says why; past the mouth the cap is gone."""
+    hall = next(o for o in FLOOR.openings if o.id == "north hall")
+    front = CONFIG.geometry.length_mm / 2
+
+    async def drive_at(s: float) -> None:
+        x, y = FLOOR.from_hallway(s, 295)
+        pose = estimate_at(2, x, y, 180.0)
+        for _ in range(round(4.0 / CONFIG.motion.period_s)):
+            rig.board.publish(CURRENT_STATE, CurrentState(pose=pose))
+            rig.board.publish(ODOMETRY, TELEMETRY)
+            rig.board.publish(COLLISION, GO)
+            await rig.clock.advance(CONFIG.motion.period_s)
+
+    rig.board.publish(
+        MOVE_INSTRUCTION,
+        MoveInstruction(id=4, action="follow_lane", floor=2, target_s_mm=1000, lane_mm=295),
+    )
+    beside = hall.at_mm + front
+    await drive_at(beside)
+    x, y = FLOOR.from_hallway(beside, 295)
+    zone = rig.module.zone(estimate_at(2, x, y, 180.0), CONFIG.motion.max_speed_mm_s)
+    assert zone is not None and zone.opening == "north hall"
+    assert 0 < rig.speed() <= zone.speed_mm_s + 1e-6
+    command = rig.board.latest(MOTOR_COMMAND)
+    assert command is not None and "opening north hall" in command.msg.reason
+    await drive_at(hall.span[0] - 100.0)  # the front past the mouth's far edge
+    assert rig.speed() > zone.speed_mm_s + 100.0

@@ -7,18 +7,21 @@ no collision verdict yet, a verdict older than ``stale_safety_s``, a "stop" verd
 e-stop engaged, the collision module reported failed (or stopped, or restarting), no pose
 fresher than ``stale_pose_s``, or no motor telemetry within ``[motor] telemetry_timeout_s``
 (a silent controller obeys nothing, and its wheels' state is unknown). A "slow" verdict
-caps the speed at its limit. A front "stop" that the verdict marks ``may_rotate`` (sides
-clear, nothing coming closer) still lets the robot turn on the spot, so a turn into a door or
-away from a box is not frozen half-way, and a turn is all it gets: the forward speed stays
-zero. On shutdown it sends a stop before anything is cancelled; if it crashes it sends a
-stop on the way out, the motor driver replaces a silent motion module's command by a stop,
-and the controller's own watchdog stops the wheels if everything above it is gone.
+caps the speed at its limit, and so does a slow zone at an opening of the floor plan
+(:mod:`coffeebot.navigation.openings`: someone may step out of a side hallway unseen). A
+front "stop" that the verdict marks ``may_rotate`` (sides clear, nothing coming closer)
+still lets the robot turn on the spot, so a turn into a door or away from a box is not
+frozen half-way, and a turn is all it gets: the forward speed stays zero. On shutdown it
+sends a stop before anything is cancelled; if it crashes it sends a stop on the way out, the
+motor driver replaces a silent motion module's command by a stop, and the controller's own
+watchdog stops the wheels if everything above it is gone.
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import math
 from dataclasses import dataclass
 
 from coffeebot.board import Envelope
@@ -40,6 +43,7 @@ from coffeebot.messages import (
     MotionState,
     MotionStatus,
     MotorCommand,
+    PoseEstimate,
     SafetyState,
     StopCause,
 )
@@ -47,6 +51,7 @@ from coffeebot.modules.base import Module, ModuleBoard, ModuleContext
 from coffeebot.navigation.control import wheel_speeds
 from coffeebot.navigation.costmap import Footprint, LocalCostmap
 from coffeebot.navigation.motion import MotionController
+from coffeebot.navigation.openings import OpeningZones, ZoneLimit
 
 MIN_TURN_DPS = 1.0
 """Below this a turn on the spot under a front stop is not worth sending: stand still."""
@@ -130,9 +135,20 @@ class MotionModule(Module):
             axle_x_mm=config.motor.axle_x_mm,
         )
         self.costmap = LocalCostmap(
-            self.cfg, config.tof.sensors, self.footprint, config.tof.cone_half_deg
+            self.cfg,
+            config.tof.sensors,
+            self.footprint,
+            config.tof.cone_half_deg,
+            narrow=config.collision,
         )
         self.controller = MotionController(self.cfg, plan, self.costmap, self.footprint)
+        self.zones = OpeningZones(
+            config.openings,
+            config.collision,
+            config.tof.sensors,
+            config.geometry.width_mm,
+            config.geometry.length_mm,
+        )
         self.collision_health: HealthStatus | None = None
         self._board: ModuleBoard | None = None
         self._stopping = False
@@ -243,11 +259,24 @@ class MotionModule(Module):
             )
             return
         limit = min(gate.speed_limit_mm_s, self.cfg.max_speed_mm_s)
+        zone = self.zone(state.msg.pose, limit)
+        if zone is not None:
+            limit = zone.speed_mm_s
         command = self.controller.step(ins, state.msg.pose, now, dt, limit)
         reason = command.status.state.value
         if gate.speed_limit_mm_s < self.cfg.cruise_speed_mm_s:
             reason = f"{reason}; {gate.reason}"
+        if zone is not None:
+            reason = f"{reason}; slow: {zone.reason}"
         self._send(ctx.board, command.speed_mm_s, command.yaw_rate_dps, reason, command.status)
+
+    def zone(self, pose: PoseEstimate, limit_mm_s: float) -> ZoneLimit | None:
+        """The slow zone of an opening that caps the speed below ``limit_mm_s`` here, if any:
+        the robot taken to drive along the hallway the way it faces."""
+        floor = self.plan.floor(pose.floor)
+        s, d = floor.to_hallway(pose.x_mm, pose.y_mm)
+        facing = math.cos(math.radians(pose.heading_deg - floor.hallway.heading_deg))
+        return self.zones.limit(floor, s, d, 1.0 if facing >= 0 else -1.0, limit_mm_s)
 
     def _send(
         self,

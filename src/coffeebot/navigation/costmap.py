@@ -20,6 +20,17 @@ closer than ``obstacle_clearance_mm`` to the body), walls are lethal within
 ``side_clearance_mm`` of the body's rectangle, and the cost decays exponentially over
 ``inflation_mm`` beyond that, so the planner prefers to keep its distance when it can.
 
+A cell marked by a narrow return (what the collision monitor calls narrow: a return seen by
+one or two adjacent front sensors while the others read much further, a pole or a leg, with
+sensors of the row reading further on both sides of it) keeps ``[collision]
+narrow_margin_mm`` more clearance in every gap the planners ask for, and is placed at the
+near end of the reading's spread, as the collision monitor judges it. What
+stands on a pole often spreads out above the cones: a swivel chair's seat overhangs its pole
+by ~240 mm where the body is, so a go-around planned on the pole alone swings a front corner
+into the seat. A cell a pole's return marked keeps the margin whenever it is occupied for
+``obstacle_memory_s`` after: the same pole, seen closer or turned, may read as part of
+something wider, or blend, and mark the cell again, and the seat is still there.
+
 Each cell also remembers since when it has been continuously occupied: an obstacle whose
 nearest cells have stood for ``static_confirm_s`` is static; a walking person keeps producing
 fresh cells (approaching) or clears the old ones (leaving), so they are never "static" and the
@@ -34,9 +45,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from coffeebot.config import MotionConfig, TofSensorConfig
+from coffeebot.config import CollisionConfig, MotionConfig, TofSensorConfig
 from coffeebot.floorplan import Floor, segment_distances
-from coffeebot.messages import NOTHING_IN_RANGE, RangeScan, ReadingStatus
+from coffeebot.messages import NOTHING_IN_RANGE, RangeReading, RangeScan, ReadingStatus
+from coffeebot.perception.collision import narrow_returns, near_end_mm
 from coffeebot.perception.geometry import sensor_origin
 from coffeebot.perception.walls import wall_ranges
 
@@ -77,9 +89,15 @@ class LocalCostmap:
         sensors: Iterable[TofSensorConfig],
         footprint: Footprint,
         half_fov_deg: float,
+        narrow: CollisionConfig | None = None,
     ) -> None:
+        """``narrow``: the collision config whose narrow-return rule (and margin) marks
+        cells as narrow; None: no cell is."""
         self.cfg = cfg
+        self.narrow_cfg = narrow
+        self.narrow_margin_mm = 0.0 if narrow is None else narrow.narrow_margin_mm
         self.sensors = list(sensors)
+        self._front_y = {s.id: s.y_mm for s in self.sensors}
         self.footprint = footprint
         self.half_fov_deg = half_fov_deg
         self.body = replace(footprint, front_extra_mm=0.0)
@@ -104,6 +122,8 @@ class LocalCostmap:
         self.hit_t = np.full((self.n, self.n), -math.inf)
         self.clear_t = np.full((self.n, self.n), -math.inf)
         self.since_t = np.full((self.n, self.n), math.inf)
+        self.pole_t = np.full((self.n, self.n), -math.inf)
+        """When a pole's return last marked each cell."""
 
     # --- grid ------------------------------------------------------------------------------
 
@@ -114,6 +134,7 @@ class LocalCostmap:
         self.hit_t.fill(-math.inf)
         self.clear_t.fill(-math.inf)
         self.since_t.fill(math.inf)
+        self.pole_t.fill(-math.inf)
 
     def _recentre(self, floor: Floor, x_mm: float, y_mm: float) -> None:
         """Keep the robot in the middle half of the window, shifting cells by whole cells."""
@@ -126,11 +147,13 @@ class LocalCostmap:
             return
         shift_i = round((x_mm - cx) / self.res)
         shift_j = round((y_mm - cy) / self.res)
-        for grid, fill in (
+        grids: tuple[tuple[np.ndarray, float], ...] = (
             (self.hit_t, -math.inf),
             (self.clear_t, -math.inf),
             (self.since_t, math.inf),
-        ):
+            (self.pole_t, -math.inf),
+        )
+        for grid, fill in grids:
             moved = np.full_like(grid, fill)
             src_i = slice(max(0, shift_i), min(self.n, self.n + shift_i))
             dst_i = slice(max(0, -shift_i), min(self.n, self.n - shift_i))
@@ -165,12 +188,25 @@ class LocalCostmap:
         narrowed = max(0.0, self.half_fov_deg - heading_error_deg)
         clear_spread = np.radians(np.linspace(-narrowed, narrowed, self._rays))
         readings = {r.sensor: r for r in scan.readings}
+        walls = {
+            sensor.id: self._explained(
+                floor, sensor, readings.get(sensor.id), x_mm, y_mm, heading_deg
+            )
+            for sensor in self.sensors
+        }
+        narrow = self._poles({i: r for i, r in readings.items() if not walls.get(i)})
         for sensor in self.sensors:
             reading = readings.get(sensor.id)
             if reading is None or not reading.healthy:
                 continue
             if reading.status is ReadingStatus.VALID and reading.distance_mm is not None:
                 distance: float | None = float(reading.distance_mm)
+                if sensor.id in narrow:
+                    # A thin thing before a far one reads beyond where it is (the chip
+                    # averages both): placed at the near end of the reading's spread, as the
+                    # collision monitor judges it, so the margin is kept from the pole, not
+                    # from a point up to ~200 mm behind it.
+                    distance = float(near_end_mm(reading))
             elif reading.status in NOTHING_IN_RANGE:
                 distance = None
             else:
@@ -184,30 +220,83 @@ class LocalCostmap:
                 fy = sy + np.outer(np.sin(clear), steps).ravel()
                 i, j = self._cells(fx, fy)
                 self.clear_t[i, j] = now
-            if distance is None or distance > MAX_MARK_MM:
-                continue
-            wall = wall_ranges(floor, sx, sy, math.radians(look) + self._explain).min()
-            if wall <= distance + self.cfg.wall_margin_mm:
-                continue  # the plan's walls explain the reading
+            if distance is None or distance > MAX_MARK_MM or walls[sensor.id]:
+                continue  # nothing there, too far to mark, or the plan's walls explain it
             angles = math.radians(look) + self._spread
             hx = sx + distance * np.cos(angles)
             hy = sy + distance * np.sin(angles)
             i, j = self._cells(hx, hy)
             fresh = ~self._occupied_at(i, j, now)
             self.since_t[i[fresh], j[fresh]] = now
+            if sensor.id in narrow:
+                self.pole_t[i, j] = now
             self.hit_t[i, j] = now
+
+    def _explained(
+        self,
+        floor: Floor,
+        sensor: TofSensorConfig,
+        reading: RangeReading | None,
+        x_mm: float,
+        y_mm: float,
+        heading_deg: float,
+    ) -> bool:
+        """Whether the plan's walls explain a valid reading: some ray of the cone, widened
+        by ``wall_heading_tolerance_deg``, meets a wall within ``wall_margin_mm`` of it."""
+        if reading is None or not reading.healthy or reading.status is not ReadingStatus.VALID:
+            return False
+        if reading.distance_mm is None or reading.distance_mm > MAX_MARK_MM:
+            return False
+        sx, sy, look = sensor_origin(x_mm, y_mm, heading_deg, sensor)
+        wall = wall_ranges(floor, sx, sy, math.radians(look) + self._explain).min()
+        return bool(wall <= reading.distance_mm + self.cfg.wall_margin_mm)
+
+    def _poles(self, readings: dict[int, RangeReading]) -> frozenset[int]:
+        """The front sensors whose return is a pole: narrow (the collision monitor's rule:
+        one or two adjacent front sensors, the others reading much further or nothing, the
+        readings the plan's walls explain counting as further), and not taking in the
+        outermost front sensor of the row: such a run may be the edge of something wide
+        reaching beyond the row (a box in one half of the lane reads so, the other half's
+        sensors seeing the hallway beyond)."""
+        if self.narrow_cfg is None:
+            return frozenset()
+        narrow = narrow_returns(self.sensors, readings, self.narrow_cfg)
+        row = sorted(
+            (s.id for s in self.sensors if s.face == "front"), key=lambda i: self._front_y[i]
+        )
+        keep: set[int] = set()
+        run: list[int] = []
+        for k, ident in enumerate(row):
+            if ident in narrow:
+                run.append(ident)
+            if run and (ident not in narrow or k == len(row) - 1):
+                if row[0] not in run and row[-1] not in run:
+                    keep.update(run)
+                run = []
+        return frozenset(keep)
 
     def _occupied_at(self, i: np.ndarray, j: np.ndarray, now: float) -> np.ndarray:
         hit = self.hit_t[i, j]
         return (hit > self.clear_t[i, j]) & (now - hit <= self.cfg.obstacle_memory_s)
 
-    def obstacles(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Centres (x, y) of occupied cells and since when each has been occupied."""
+    def _occupied(self, now: float) -> tuple[np.ndarray, np.ndarray]:
         occupied = (self.hit_t > self.clear_t) & (now - self.hit_t <= self.cfg.obstacle_memory_s)
         i, j = np.nonzero(occupied)
+        return i, j
+
+    def obstacles(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Centres (x, y) of occupied cells and since when each has been occupied."""
+        i, j = self._occupied(now)
         xs = self.origin[0] + (i + 0.5) * self.res
         ys = self.origin[1] + (j + 0.5) * self.res
         return xs, ys, self.since_t[i, j]
+
+    def margins(self, now: float) -> np.ndarray:
+        """Per occupied cell, in the order of :meth:`obstacles`: the clearance it needs beyond
+        everything else's (``narrow_margin_mm`` for a narrow return's cell, else 0)."""
+        i, j = self._occupied(now)
+        pole = now - self.pole_t[i, j] <= self.cfg.obstacle_memory_s
+        return np.where(pole, self.narrow_margin_mm, 0.0)
 
     # --- cost queries ----------------------------------------------------------------------
 
@@ -220,8 +309,10 @@ class LocalCostmap:
         footprint: Footprint | None = None,
     ) -> np.ndarray:
         """For each pose, the smallest gap between the body (``footprint``, by default the
-        planner's, front extension included) and an obstacle cell (inf: none)."""
+        planner's, front extension included) and an obstacle cell (inf: none); a narrow
+        return's cell counts ``narrow_margin_mm`` nearer than it is, for what it may carry."""
         ox, oy, _ = self.obstacles(now)
+        margins = self.margins(now)
         if ox.size == 0:
             return np.full(np.shape(xs), math.inf)
         dx = ox[None, :] - np.ravel(xs)[:, None]
@@ -229,7 +320,7 @@ class LocalCostmap:
         c, s = np.cos(np.ravel(thetas))[:, None], np.sin(np.ravel(thetas))[:, None]
         local_x, local_y = c * dx + s * dy, -s * dx + c * dy
         body = footprint or self.footprint
-        gaps = body.gap_mm(local_x, local_y).min(axis=1) - self.res / 2.0
+        gaps = (body.gap_mm(local_x, local_y) - margins[None, :]).min(axis=1) - self.res / 2.0
         return gaps.reshape(np.shape(xs))
 
     def wall_gaps(self, xs: np.ndarray, ys: np.ndarray, thetas: np.ndarray) -> np.ndarray:

@@ -10,6 +10,11 @@ past it with the lane ahead clear, the dynamic window steers back to the lane, c
 rear's swing against the walls, until the robot is within ``REJOIN_MM`` of it; then the
 detour ends and lane keeping takes over. Something new in the lane while rejoining is judged
 afresh, from confirming.
+
+A narrow return's cells (a pole, a leg: :mod:`coffeebot.navigation.costmap`) carry what may
+stand on them, a seat overhanging by ~240 mm: each of the questions below widens them by
+their margin, in the lane ahead, in the lane past it, where to wait and when the body is
+past.
 """
 
 from __future__ import annotations
@@ -49,6 +54,16 @@ class Sighting:
     """Its along-hallway position."""
     static: bool
     """Whether it, and the cells just beyond it, have stood still for ``static_confirm_s``."""
+    margin_mm: float = 0.0
+    """How far beyond the cell what stands on it may reach (a narrow return's margin)."""
+
+    def near_edge(self, direction: float) -> float:
+        """Its along-hallway position, less its margin towards the robot."""
+        return self.s_mm - direction * self.margin_mm
+
+    def far_edge(self, direction: float) -> float:
+        """Its along-hallway position, plus its margin away from the robot."""
+        return self.s_mm + direction * self.margin_mm
 
 
 @dataclass
@@ -134,7 +149,8 @@ class DetourPlanner:
                 if free is not None:
                     detour.go_round(free)
             if detour.phase is Phase.GOING_ROUND:
-                detour.extend(sighting.s_mm + direction * self.cfg.static_tolerance_mm, direction)
+                far = sighting.far_edge(direction) + direction * self.cfg.static_tolerance_mm
+                detour.extend(far, direction)
         elif detour is not None:
             if detour.phase is Phase.CONFIRMING:
                 self.detour = None  # it went away before it was confirmed
@@ -166,39 +182,47 @@ class DetourPlanner:
         ``settled``: of the cells that have stood still for ``static_confirm_s``."""
         cfg = self.cfg
         xs, ys, since = self.costmap.obstacles(now)
+        margins = self.costmap.margins(now)
         if settled:
             keep = since <= now - cfg.static_confirm_s
-            xs, ys = xs[keep], ys[keep]
+            xs, ys, margins = xs[keep], ys[keep], margins[keep]
         sd = np.array([floor.to_hallway(x, y) for x, y in zip(xs, ys, strict=True)]).reshape(-1, 2)
         along = (sd[:, 0] - obstacle_s) * direction
-        near = sd[(along > -self.footprint.length_mm) & (along < cfg.lookahead_mm), 1]
+        beside = (along > -self.footprint.length_mm - margins) & (along < cfg.lookahead_mm)
+        near, near_margins = sd[beside, 1], margins[beside]
         half_body = self.footprint.width_mm / 2
         reach = floor.hallway.width_mm / 2 - half_body - cfg.side_clearance_mm
         clearance = half_body + cfg.obstacle_clearance_mm + cfg.costmap_resolution_mm
         step = cfg.costmap_resolution_mm
         offsets = sorted(np.arange(-reach, reach + 1.0, step), key=lambda d: abs(d - lane))
         for d in offsets:
-            if not np.any(np.abs(near - d) < clearance):
+            if not np.any(np.abs(near - d) < clearance + near_margins):
                 return float(d)
         return None
 
     def obstacle_ahead(
         self, floor: Floor, s: float, lane: float, direction: float, now: float
     ) -> Sighting | None:
-        """The nearest obstacle cell in the lane ahead and whether it has stood still."""
+        """The nearest obstacle cell in the lane ahead (a narrow return's nearer by its
+        margin, and in the lane when what it may carry reaches into it) and whether it has
+        stood still."""
         xs, ys, since = self.costmap.obstacles(now)
         if xs.size == 0:
             return None
+        margins = self.costmap.margins(now)
         sd = np.array([floor.to_hallway(x, y) for x, y in zip(xs, ys, strict=True)])
         along = (sd[:, 0] - s) * direction
+        reach = along - margins
         half = self.footprint.width_mm / 2 + self.cfg.obstacle_clearance_mm
         behind = self.footprint.length_mm / 2
         in_lane = (
-            (np.abs(sd[:, 1] - lane) < half) & (along > -behind) & (along < self.cfg.lookahead_mm)
+            (np.abs(sd[:, 1] - lane) < half + margins)
+            & (along + margins > -behind)
+            & (reach < self.cfg.lookahead_mm)
         )
         if not in_lane.any():
             return None
-        nearest = int(np.argmin(np.where(in_lane, along, np.inf)))
-        near = in_lane & (along < along[nearest] + self.cfg.static_tolerance_mm)
+        nearest = int(np.argmin(np.where(in_lane, reach, np.inf)))
+        near = in_lane & (reach < reach[nearest] + self.cfg.static_tolerance_mm)
         static = bool(np.all(since[near] <= now - self.cfg.static_confirm_s))
-        return Sighting(float(sd[nearest, 0]), static)
+        return Sighting(float(sd[nearest, 0]), static, float(margins[nearest]))

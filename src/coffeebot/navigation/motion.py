@@ -256,7 +256,7 @@ class MotionController:
         sighting = self.detour.update(floor, s, d, lane, direction, ins.avoid, now)
         detour_lane = self.detour.lane_mm
         if self.detour.phase is Phase.CONFIRMING and sighting is not None:
-            gap = (sighting.s_mm - s) * direction - self.detour.wait_distance_mm()
+            gap = (sighting.near_edge(direction) - s) * direction - self.detour.wait_distance_mm()
             target = min(target, self.profile.target(gap, cruise))
             status = self._status(
                 ins.id,

@@ -134,6 +134,30 @@ class _Finding:
     """The sigma the sensor reported with its reading (0 when it said none)."""
 
 
+def narrow_returns(
+    sensors: Iterable[TofSensorConfig], readings: dict[int, RangeReading], cfg: CollisionConfig
+) -> frozenset[int]:
+    """Front sensors whose return is narrow: a pole, a chair leg, a person's legs. It and the
+    adjacent sensors reading within ``narrow_depth_mm`` beyond it form a run of at most
+    ``narrow_max_sensors``, so the sensors on either side of the run read much further (or
+    nothing). The collision monitor and the costmap the detour plans on both ask this."""
+    row = sorted((s for s in sensors if s.face == "front"), key=lambda s: s.y_mm)
+    distances = [valid_distance(readings.get(s.id)) for s in row]
+    found: set[int] = set()
+    for i, distance in enumerate(distances):
+        if distance is None or distance > cfg.narrow_max_range_mm:
+            continue
+        near = [d is not None and d < distance + cfg.narrow_depth_mm for d in distances]
+        lo, hi = i, i
+        while lo > 0 and near[lo - 1]:
+            lo -= 1
+        while hi < len(row) - 1 and near[hi + 1]:
+            hi += 1
+        if hi - lo + 1 <= cfg.narrow_max_sensors:
+            found.add(row[i].id)
+    return frozenset(found)
+
+
 def stop_distance_mm(cfg: CollisionConfig, speed_mm_s: float) -> float:
     """Distance to stop from ``speed_mm_s`` towards the obstacle; never below the seed radius."""
     v = max(0.0, speed_mm_s)
@@ -290,25 +314,8 @@ class CollisionMonitor:
         return self.cfg.side_radius_mm
 
     def narrow(self, readings: dict[int, RangeReading]) -> frozenset[int]:
-        """Front sensors whose return is narrow: it and the adjacent sensors reading within
-        ``narrow_depth_mm`` beyond it form a run of at most ``narrow_max_sensors``, so the
-        sensors on either side of the run read much further (or nothing)."""
-        cfg = self.cfg
-        row = sorted((s for s in self.sensors.values() if s.face == "front"), key=lambda s: s.y_mm)
-        distances = [valid_distance(readings.get(s.id)) for s in row]
-        found: set[int] = set()
-        for i, distance in enumerate(distances):
-            if distance is None or distance > cfg.narrow_max_range_mm:
-                continue
-            near = [d is not None and d < distance + cfg.narrow_depth_mm for d in distances]
-            lo, hi = i, i
-            while lo > 0 and near[lo - 1]:
-                lo -= 1
-            while hi < len(row) - 1 and near[hi + 1]:
-                hi += 1
-            if hi - lo + 1 <= cfg.narrow_max_sensors:
-                found.add(row[i].id)
-        return frozenset(found)
+        """Front sensors whose return is narrow (:func:`narrow_returns`)."""
+        return narrow_returns(self.sensors.values(), readings, self.cfg)
 
     def _assess(
         self,
