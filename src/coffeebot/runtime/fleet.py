@@ -244,7 +244,7 @@ async def build_fleet_sim(
             web=web,
             extra=dispatcher_extra,
         )
-        world_task = asyncio.create_task(shared.run(), name="simulated world")
+        world_task = shared.start()
         try:
             yield FleetSim(dispatcher, robots, sims, shared)
         finally:

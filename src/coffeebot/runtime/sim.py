@@ -98,7 +98,7 @@ async def build_sim(
         switches = crash_switches(runtime.daemon.modules, sim.crashing_modules())
         sim.crashes = {name: switch.trip for name, switch in switches.items()}
         # The world runs from before the daemon's self-check until after its shutdown.
-        world_task = asyncio.create_task(shared.run(), name="simulated world")
+        world_task = shared.start()
         world_task.add_done_callback(functools.partial(_world_ended, runtime))
         try:
             yield runtime, sim

@@ -72,6 +72,14 @@ class SimWorld:
         for robot in self.robots:
             robot.advance(now)
 
+    def start(self) -> asyncio.Task[None]:
+        """Step the world in a task, in lockstep from this moment: a device call made before
+        the task first ran would otherwise take a share of simulated time that depends on
+        how soon the machine got to it."""
+        if isinstance(self.clock, SteppedClock):
+            self.lockstep.engage(True)
+        return asyncio.create_task(self.run(), name="simulated world")
+
     async def run(self, step_s: float = STEP_S) -> None:
         clock = self.clock
         if not isinstance(clock, SteppedClock):
