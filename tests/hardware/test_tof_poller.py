@@ -157,6 +157,11 @@ async def test_a_sensor_that_stopped_ranging_is_reinitialised(
     got = await scans(board, 40)  # 1.6 s at 25 Hz
     assert any(s.readings[6].status is ReadingStatus.BUS_ERROR for s in got)
     assert by_sensor(got[-1])[6] == (ReadingStatus.VALID, 1001)
+    # Its re-initialisation never held the bus: no cycle longer than one waiting out a late
+    # sample (two sample periods). A stall makes every collision verdict late, and motion
+    # then holds the robot for that instead of for the sensor.
+    starts = [s.cycle_start_s for s in got]
+    assert max(b - a for a, b in itertools.pairwise(starts)) <= 2 * 0.04 + 1e-9
     [fault] = events(caplog, "fault")
     assert fault.subject == "tof6" and "stopped ranging" in fault.cause
     [recovered] = events(caplog, "recovered")

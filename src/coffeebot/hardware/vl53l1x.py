@@ -306,12 +306,22 @@ class VL53L1X:
     def init(self) -> None:
         """ULD SensorInit: boot wait, id check, default configuration, one VHV calibration
         measurement, then stop. Leaves the sensor configured but not ranging."""
+        self.begin_init()
+        self.wait_data_ready()
+        self.end_init()
+
+    def begin_init(self) -> None:
+        """:meth:`init` up to its calibration measurement, started and not waited for: poll
+        :meth:`data_ready`, then :meth:`end_init` (a bus shared with other sensors need not
+        stand still for it)."""
         self.wait_booted()
         self.check_model_id()
         self.write(REG_CONFIG_BLOCK, DEFAULT_CONFIGURATION)
         self._ready_level = 0 if self.read_int(REG_GPIO_HV_MUX_CTRL, 1) & GPIO_ACTIVE_LOW_BIT else 1
         self.start_ranging()
-        self.wait_data_ready()
+
+    def end_init(self) -> None:
+        """The rest of :meth:`init` once the calibration measurement is ready."""
         self.clear_interrupt()
         self.stop_ranging()
         self.write_int(REG_VHV_CONFIG_TIMEOUT_MACROP_LOOP_BOUND, 0x09, 1)

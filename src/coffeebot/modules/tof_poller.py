@@ -4,7 +4,10 @@ Each sensor is independent: an ``OSError`` from one (a NACK, a bus timeout, a wr
 marks that sensor unhealthy in the scan and on the health topic and schedules its
 re-initialisation with backoff, while the others keep being read in the same cycle. So does a
 sensor that answers but has had no new sample for ``STALE_PERIODS`` sample periods (it stopped
-ranging, as after a brown-out): only a re-initialisation starts it again. A sensor
+ranging, as after a brown-out): only a re-initialisation starts it again. A re-initialisation
+after a failure never holds the bus for the others: its calibration measurement is started in
+one cycle and polled in the following ones, like any sample (at start-up every sensor is
+brought up at once, before the first scan). A sensor
 going unhealthy is logged once as ``event=fault`` with the error, and once as
 ``event=recovered`` when it is re-initialised, however many retries that took.
 """
@@ -38,6 +41,8 @@ HEALTHY, FAILED = "healthy", "failed"
 STALE_PERIODS = 25
 """A sensor with no new sample for this many sample periods (0.5 s at 20 ms) has stopped
 ranging: it is re-initialised."""
+CALIBRATION_S = 1.0
+"""A re-initialisation whose calibration measurement is not ready by then has failed."""
 
 
 @dataclass
@@ -53,6 +58,8 @@ class SensorSlot:
     error: str = "not initialised"
     last_sample_s: float = 0.0
     """When its last new sample was read (or it was brought up)."""
+    calibrating_since: float | None = None
+    """A re-initialisation's calibration measurement is under way since then."""
 
     @property
     def component(self) -> str:
@@ -198,6 +205,9 @@ class TofPoller(Module):
     def _init_sensor(self, mux: TCA9548A, slot: SensorSlot) -> None:
         mux.select(slot.cfg.channel)
         slot.driver.init()
+        self._configure(slot)
+
+    def _configure(self, slot: SensorSlot) -> None:
         slot.driver.configure(
             DISTANCE_MODES[self.tof.distance_mode],
             self.tof.timing_budget_ms,
@@ -208,14 +218,41 @@ class TofPoller(Module):
         slot.driver.set_roi(slot.driver.centred_roi(size, size))
         slot.driver.start_ranging()
 
+    def _begin_init(self, mux: TCA9548A, slot: SensorSlot) -> None:
+        mux.select(slot.cfg.channel)
+        slot.driver.begin_init()
+
+    def _calibrated(self, mux: TCA9548A, slot: SensorSlot) -> bool:
+        mux.select(slot.cfg.channel)
+        return slot.driver.data_ready()
+
+    def _end_init(self, mux: TCA9548A, slot: SensorSlot) -> None:
+        mux.select(slot.cfg.channel)
+        slot.driver.end_init()
+        self._configure(slot)
+
     async def _bring_up(
         self, ctx: ModuleContext, worker: DeviceWorker, mux: TCA9548A, slot: SensorSlot
     ) -> None:
+        now = ctx.clock.now()
         try:
-            await worker.call(self._init_sensor, mux, slot)
+            if slot.failures == 0:  # start-up: the whole initialisation at once
+                await worker.call(self._init_sensor, mux, slot)
+            elif slot.calibrating_since is None:
+                await worker.call(self._begin_init, mux, slot)
+                slot.calibrating_since = now
+                return
+            elif not await worker.call(self._calibrated, mux, slot):
+                if now - slot.calibrating_since < CALIBRATION_S:
+                    return
+                raise OSError(f"no calibration measurement within {CALIBRATION_S:g} s")
+            else:
+                await worker.call(self._end_init, mux, slot)
         except OSError as exc:
+            slot.calibrating_since = None
             self._mark_failed(ctx, slot, exc)
             return
+        slot.calibrating_since = None
         slot.healthy = True
         slot.last_sample_s = ctx.clock.now()
         slot.backoff.reset()
