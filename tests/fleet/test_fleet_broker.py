@@ -52,8 +52,10 @@ ROOT = Path(__file__).resolve().parents[2]
 PLAN = load_floorplan(ROOT / "floorplans" / "cs-building.toml")
 BOARD = load_robot_config(ROOT / "boards" / "coffeebot-v1.toml")
 RULES = OrderRules(rooms=set(PLAN.rooms), drinks=set(BOARD.web.drinks))
-WAIT_S = 20.0
-DISPATCH = DispatchConfig(stale_after_s=1.0, lost_after_s=2.0, ack_timeout_s=0.5, lease_s=2.0)
+WAIT_S = 30.0
+DISPATCH = DispatchConfig(stale_after_s=3.0, lost_after_s=3.0, ack_timeout_s=1.0, lease_s=10.0)
+"""Short enough for the tests' waits, long enough that a loaded machine delaying a state
+report or a lease renewal by a second does not make a robot stale or lose its lease."""
 
 
 class StandInNavigation(Module):
@@ -219,6 +221,15 @@ async def test_two_orders_go_to_two_robots_one_each(fleet: Fleet) -> None:
     assert {a.robot, b.robot} == set(ROBOTS)
 
 
+def robot_2_gone(fleet: Fleet) -> Callable[[], Awaitable[bool]]:
+    async def gone() -> bool:
+        dispatcher = fleet.orders.dispatcher
+        assert dispatcher is not None
+        return not any(r.robot == "robot-2" and r.online for r in dispatcher.view())
+
+    return gone
+
+
 async def test_cancel_works_before_the_robot_acknowledged_and_reaches_the_robot(
     fleet: Fleet, broker: Mosquitto
 ) -> None:
@@ -237,6 +248,7 @@ async def test_cancel_works_before_the_robot_acknowledged_and_reaches_the_robot(
         await silent.subscribe(robot_topic("robot-1", "#"))
         ticker = asyncio.create_task(_free_robot(silent))
         try:
+            await fleet.until(robot_2_gone(fleet), "the dispatcher hears robot-2 went offline")
             placed = await fleet.order()
             order = await fleet.until_status(placed.id, OrderStatus.PREPARING)
             assert order.robot == "robot-1"
