@@ -244,14 +244,11 @@ async def build_fleet_sim(
             web=web,
             extra=dispatcher_extra,
         )
-        world_task = shared.start()
+        shared.start()
         try:
             yield FleetSim(dispatcher, robots, sims, shared)
         finally:
-            world_task.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await world_task
-            shared.close()
+            await shared.stop()
             store.close()
 
 

@@ -103,10 +103,7 @@ async def build_sim(
         try:
             yield runtime, sim
         finally:
-            world_task.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await world_task
-            shared.close()
+            await shared.stop()
             store.close()
 
 

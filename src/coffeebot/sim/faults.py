@@ -14,13 +14,14 @@ from __future__ import annotations
 import random
 from abc import abstractmethod
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, ClassVar, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, model_validator
 
 if TYPE_CHECKING:
     from coffeebot.sim.simulation import Simulation
     from coffeebot.sim.store import SimStore
+    from coffeebot.sim.uart import UartDevice
 
 GARBAGE_PERIOD_S = 0.1
 
@@ -115,17 +116,25 @@ class SensorStale(_Fault):
         """Nothing to undo: the chip ranges again once it is re-initialised."""
 
 
-class UwbGarbage(_Fault):
-    """The UWB line carries random bytes between the tag's lines."""
+class _LineNoise(_Fault):
+    """Random bytes on a serial line between the device's own lines, a burst every
+    ``GARBAGE_PERIOD_S``."""
 
-    kind: Literal["uwb_garbage"]
     bytes_per_burst: int = Field(40, gt=0)
     seed: int = 0
     _rng: random.Random = PrivateAttr(default_factory=random.Random)
     _next: float = PrivateAttr(0.0)
+    _line_name: ClassVar[str]
+
+    @abstractmethod
+    def _device(self, sim: Simulation) -> UartDevice:
+        """The device whose line the noise is on."""
 
     def describe(self) -> str:
-        return f"UWB line noise, {self.bytes_per_burst} bytes every {GARBAGE_PERIOD_S:g} s"
+        return (
+            f"{self._line_name} line noise, {self.bytes_per_burst} bytes every "
+            f"{GARBAGE_PERIOD_S:g} s"
+        )
 
     def begin(self, sim: Simulation) -> None:
         self._rng.seed(self.seed)
@@ -135,10 +144,20 @@ class UwbGarbage(_Fault):
     def during(self, sim: Simulation) -> None:
         if sim.t_s >= self._next:
             self._next += GARBAGE_PERIOD_S
-            sim.uwb.inject(self._rng.randbytes(self.bytes_per_burst))
+            self._device(sim).inject(self._rng.randbytes(self.bytes_per_burst))
 
     def end(self, sim: Simulation) -> None:
         """Nothing to undo: the noise simply stops."""
+
+
+class UwbGarbage(_LineNoise):
+    """The UWB line carries random bytes between the tag's lines."""
+
+    kind: Literal["uwb_garbage"]
+    _line_name: ClassVar[str] = "UWB"
+
+    def _device(self, sim: Simulation) -> UartDevice:
+        return sim.uwb
 
 
 class UwbUnplug(_Fault):
@@ -171,30 +190,14 @@ class MotorSilent(_Fault):
         sim.motor.silent = False
 
 
-class MotorGarbage(_Fault):
+class MotorGarbage(_LineNoise):
     """The motor controller's line carries random bytes between its telemetry lines."""
 
     kind: Literal["motor_garbage"]
-    bytes_per_burst: int = Field(40, gt=0)
-    seed: int = 0
-    _rng: random.Random = PrivateAttr(default_factory=random.Random)
-    _next: float = PrivateAttr(0.0)
+    _line_name: ClassVar[str] = "motor"
 
-    def describe(self) -> str:
-        return f"motor line noise, {self.bytes_per_burst} bytes every {GARBAGE_PERIOD_S:g} s"
-
-    def begin(self, sim: Simulation) -> None:
-        self._rng.seed(self.seed)
-        self._next = sim.t_s
-        self.during(sim)
-
-    def during(self, sim: Simulation) -> None:
-        if sim.t_s >= self._next:
-            self._next += GARBAGE_PERIOD_S
-            sim.motor.inject(self._rng.randbytes(self.bytes_per_burst))
-
-    def end(self, sim: Simulation) -> None:
-        """Nothing to undo: the noise simply stops."""
+    def _device(self, sim: Simulation) -> UartDevice:
+        return sim.motor
 
 
 class MotorUnplug(_Fault):

@@ -143,4 +143,3 @@ class MemoryPort:
             raise OSError(errno.EBADF, "port is closed")
         if not self._line._alive(self._generation):
             raise OSError(errno.EIO, f"{self._line.port}: {os.strerror(errno.EIO)} (line hung up)")
-

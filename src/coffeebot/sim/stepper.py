@@ -36,6 +36,7 @@ class SimWorld:
     def __init__(self, world: World, clock: Clock) -> None:
         self.world = world
         self.clock = clock
+        self._task: asyncio.Task[None] | None = None
         self.lock = threading.RLock()
         """Held for every access to the world: the I2C worker threads ask it too."""
         if isinstance(clock, SteppedClock):
@@ -78,7 +79,16 @@ class SimWorld:
         how soon the machine got to it."""
         if isinstance(self.clock, SteppedClock):
             self.lockstep.engage(True)
-        return asyncio.create_task(self.run(), name="simulated world")
+        self._task = asyncio.create_task(self.run(), name="simulated world")
+        return self._task
+
+    async def stop(self) -> None:
+        """Stop stepping (after the daemons' shutdown) and close every robot's devices."""
+        if self._task is not None:
+            self._task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._task
+        self.close()
 
     async def run(self, step_s: float = STEP_S) -> None:
         clock = self.clock

@@ -40,9 +40,7 @@ class Surfaces:
         if len(self.segment_reflectance) != len(self.segments):
             object.__setattr__(self, "segment_reflectance", np.full(len(self.segments), DEFAULT))
         if len(self.cylinder_reflectance) != len(self.cylinders):
-            object.__setattr__(
-                self, "cylinder_reflectance", np.full(len(self.cylinders), DEFAULT)
-            )
+            object.__setattr__(self, "cylinder_reflectance", np.full(len(self.cylinders), DEFAULT))
 
     @classmethod
     def empty(cls) -> Surfaces:

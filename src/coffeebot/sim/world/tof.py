@@ -432,9 +432,12 @@ class SensorArray:
             tp = np.where(met, tp, np.inf)
             k = tp.argmin(-1)[..., None]
             near = np.take_along_axis(tp, k, -1)[..., 0]
-            gain = np.take_along_axis(
-                np.broadcast_to(gain_h[..., partial][:, :, None, :], tp.shape), k, -1
-            )[..., 0] * self._cos_el[None, None, :]
+            gain = (
+                np.take_along_axis(
+                    np.broadcast_to(gain_h[..., partial][:, :, None, :], tp.shape), k, -1
+                )[..., 0]
+                * self._cos_el[None, None, :]
+            )
             hit = near < best_t
             best_t = np.where(hit, near, best_t)
             best_gain = np.where(hit, gain, best_gain)

@@ -282,9 +282,7 @@ class WorldRobot:
                 for i in range(4)
             ]
         )
-        return Surfaces(
-            sides, (self.name,) * 4, np.zeros((0, 5)), (), np.full(4, ROBOT_SHELL)
-        )
+        return Surfaces(sides, (self.name,) * 4, np.zeros((0, 5)), (), np.full(4, ROBOT_SHELL))
 
     def place(self, pose: Pose, floor: int | None = None) -> None:
         """Put the robot at rest somewhere, on another floor after an elevator ride."""
