@@ -27,6 +27,10 @@ from coffeebot.modules.base import Module, ModuleBoard, ModuleContext
 log = logging.getLogger(__name__)
 
 SHUTDOWN_HOOK_TIMEOUT_S = 2.0
+CANCEL_REPEAT_S = 1.0
+"""How long a cancelled module has to end before it is cancelled again. A cancellation can
+be lost: Python 3.11's ``asyncio.wait_for`` (which aiomqtt awaits its connection with) drops
+one that lands as the awaited future completes, and the module then runs on."""
 
 
 class ModuleState:
@@ -195,12 +199,21 @@ class Daemon:
             except Exception:
                 log.exception("shutdown hook of module %s failed", state.module.name)
         for state in reversed(self.states.values()):
-            if state.task is not None and not state.task.done():
-                state.task.cancel()
-                with contextlib.suppress(asyncio.CancelledError):
-                    await state.task
+            if state.task is not None:
+                await _cancel(state.task, state.module.name)
             state.status = HealthStatus.STOPPED
             self._report(state, "daemon stopped")
+
+
+async def _cancel(task: asyncio.Task[None], name: str) -> None:
+    """Cancel ``task`` until it ends: a shutdown never hangs on a lost cancellation."""
+    while not task.done():
+        task.cancel()
+        await asyncio.wait({task}, timeout=CANCEL_REPEAT_S)
+        if not task.done():
+            log.warning("module %s runs on %.1f s after its cancel: again", name, CANCEL_REPEAT_S)
+    with contextlib.suppress(asyncio.CancelledError):
+        await task
 
 
 def _published(module: Module) -> tuple[str, ...]:

@@ -24,7 +24,7 @@ from coffeebot.clock import MonotonicClock
 from coffeebot.config import DispatchConfig, FleetConfig, RobotConfig, load_robot_config
 from coffeebot.daemon import Daemon
 from coffeebot.fleet.mosquitto import Mosquitto
-from coffeebot.fleet.protocol import robot_topic
+from coffeebot.fleet.protocol import ConnectionState, robot_topic
 from coffeebot.floorplan import load_floorplan
 from coffeebot.messages import (
     ALL_TOPICS,
@@ -221,13 +221,28 @@ async def test_two_orders_go_to_two_robots_one_each(fleet: Fleet) -> None:
     assert {a.robot, b.robot} == set(ROBOTS)
 
 
-def robot_2_gone(fleet: Fleet) -> Callable[[], Awaitable[bool]]:
-    async def gone() -> bool:
+def online(fleet: Fleet, robot: str, wanted: bool = True) -> Callable[[], Awaitable[bool]]:
+    """Whether the dispatcher takes ``robot`` for online (``wanted``) or not."""
+
+    async def check() -> bool:
         dispatcher = fleet.orders.dispatcher
         assert dispatcher is not None
-        return not any(r.robot == "robot-2" and r.online for r in dispatcher.view())
+        return any(r.robot == robot and r.online for r in dispatcher.view()) is wanted
 
-    return gone
+    return check
+
+
+async def test_a_robot_shut_down_says_offline_and_is_no_longer_given_orders(
+    fleet: Fleet,
+) -> None:
+    await fleet.until(online(fleet, "robot-2"), "robot-2 comes online")
+    await fleet.robots["robot-2"].shutdown()
+    assert fleet.orders.dispatcher is not None
+    record = fleet.orders.dispatcher.robots["robot-2"]
+    await fleet.until(online(fleet, "robot-2", False), "the dispatcher hears robot-2 left")
+    assert record.connection is ConnectionState.OFFLINE, "it said goodbye: not a broken link"
+    placed = await fleet.order()
+    assert (await fleet.until_status(placed.id, OrderStatus.PREPARING)).robot == "robot-1"
 
 
 async def test_cancel_works_before_the_robot_acknowledged_and_reaches_the_robot(
@@ -235,6 +250,8 @@ async def test_cancel_works_before_the_robot_acknowledged_and_reaches_the_robot(
 ) -> None:
     # The real robots go; in robot-1's place, a client with its login that says it is free
     # and then never acknowledges anything (Open-RMF's users meet such tasks).
+    for robot in ROBOTS:
+        await fleet.until(online(fleet, robot), f"{robot} comes online")
     for robot in ROBOTS:
         await fleet.robots[robot].shutdown()
     login = broker.credentials["robot-1"]
@@ -248,7 +265,7 @@ async def test_cancel_works_before_the_robot_acknowledged_and_reaches_the_robot(
         await silent.subscribe(robot_topic("robot-1", "#"))
         ticker = asyncio.create_task(_free_robot(silent))
         try:
-            await fleet.until(robot_2_gone(fleet), "the dispatcher hears robot-2 went offline")
+            await fleet.until(online(fleet, "robot-2", False), "the dispatcher hears robot-2 left")
             placed = await fleet.order()
             order = await fleet.until_status(placed.id, OrderStatus.PREPARING)
             assert order.robot == "robot-1"

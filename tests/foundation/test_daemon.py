@@ -136,6 +136,36 @@ async def test_shutdown_runs_safety_hooks_first_then_cancels_in_reverse(clock) -
     assert all(s.status is HealthStatus.STOPPED for s in daemon.states.values())
 
 
+class LosesOneCancel(Module):
+    """Runs on after its first cancellation, as a module does whose cancel lands just as
+    ``asyncio.wait_for`` completes (Python 3.11 drops it there)."""
+
+    name = "deaf"
+
+    def __init__(self) -> None:
+        self.cancels = 0
+
+    async def run(self, ctx: ModuleContext) -> None:
+        while True:
+            try:
+                await asyncio.Event().wait()
+            except asyncio.CancelledError:
+                self.cancels += 1
+                if self.cancels > 1:
+                    raise
+
+
+async def test_shutdown_ends_a_module_that_lost_its_cancellation(clock) -> None:
+    module = LosesOneCancel()
+    daemon = Daemon(Board(ALL_TOPICS, clock=clock), [module], SUPERVISION)
+    await daemon.start()
+    await asyncio.sleep(0)
+    done, _ = await asyncio.wait({asyncio.create_task(daemon.shutdown())}, timeout=10)
+    assert done, "the shutdown hangs"
+    assert module.cancels == 2
+    assert daemon.states["deaf"].status is HealthStatus.STOPPED
+
+
 async def test_sigterm_stops_the_daemon_in_order(clock) -> None:
     import os
     import signal

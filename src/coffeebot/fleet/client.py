@@ -1,10 +1,15 @@
 """One MQTT connection to the fleet's broker, as robots and the dispatcher both open it:
-logged in, with a retained last will saying the connection broke (VDA 5050's pattern), so
-whoever listens learns of a vanished peer from the broker itself."""
+logged in, announced online on a retained connection topic, with a retained last will saying
+the connection broke and a retained "offline" when it is closed on purpose (VDA 5050's
+pattern), so whoever listens learns from the broker itself whether a peer is there, left, or
+vanished."""
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 import time
+from collections.abc import AsyncIterator
 from urllib.parse import urlparse
 
 import aiomqtt
@@ -21,6 +26,33 @@ def broker_address(url: str) -> tuple[str, int]:
     """``mqtt://host[:port]`` as host and port (1883 by default)."""
     parsed = urlparse(url)
     return parsed.hostname or "localhost", parsed.port or 1883
+
+
+GOODBYE_S = 1.0
+"""How long a closing connection tries to say "offline" before it goes anyway."""
+
+
+@contextlib.asynccontextmanager
+async def fleet_session(
+    url: str, credentials: Credentials, identifier: str, connection_topic: str
+) -> AsyncIterator[aiomqtt.Client]:
+    """Connected and announced online; a shutdown (the task cancelled) announces offline
+    before it disconnects, so peers do not take a robot that left for one still there."""
+    async with fleet_client(url, credentials, identifier, connection_topic) as client:
+        await _announce(client, connection_topic, ConnectionState.ONLINE)
+        try:
+            yield client
+        except asyncio.CancelledError:
+            with contextlib.suppress(aiomqtt.MqttError, TimeoutError):
+                async with asyncio.timeout(GOODBYE_S):
+                    await _announce(client, connection_topic, ConnectionState.OFFLINE)
+            raise
+
+
+async def _announce(client: aiomqtt.Client, topic: str, state: ConnectionState) -> None:
+    await client.publish(
+        topic, encode(Connection(state=state, at_s=time.time())), qos=1, retain=True
+    )
 
 
 def fleet_client(

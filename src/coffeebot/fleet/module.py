@@ -11,13 +11,12 @@ version's, or comes from a robot about another, is refused, counted and logged.
 from __future__ import annotations
 
 import asyncio
-import time
 from collections.abc import Callable
 
 import aiomqtt
 
 from coffeebot.board import Subscription
-from coffeebot.fleet.client import fleet_client
+from coffeebot.fleet.client import fleet_session
 from coffeebot.fleet.dispatcher import Announce, Dispatcher
 from coffeebot.fleet.mosquitto import Credentials
 from coffeebot.fleet.protocol import (
@@ -29,7 +28,6 @@ from coffeebot.fleet.protocol import (
     Ack,
     BadMessage,
     Connection,
-    ConnectionState,
     DeliveryReport,
     FleetMessage,
     LeaseRequest,
@@ -188,11 +186,9 @@ class DispatcherModule(Module):
         backoff = Backoff(0.5, 10.0)
         while True:
             try:
-                async with fleet_client(
+                async with fleet_session(
                     self.broker, self.credentials, "coffeebot-dispatcher", DISPATCHER_CONNECTION
                 ) as client:
-                    online = Connection(state=ConnectionState.ONLINE, at_s=time.time())
-                    await client.publish(DISPATCHER_CONNECTION, encode(online), qos=1, retain=True)
                     await client.subscribe(
                         [(f"{ROOT}/robots/+/{kind}", 1) for kind in ROBOT_TO_DISPATCHER]
                     )

@@ -33,7 +33,7 @@ from pydantic import BaseModel
 
 from coffeebot.board import Subscription
 from coffeebot.config import RobotConfig
-from coffeebot.fleet.client import fleet_client
+from coffeebot.fleet.client import fleet_session
 from coffeebot.fleet.mosquitto import Credentials
 from coffeebot.fleet.protocol import (
     DISPATCHER_TO_ROBOT,
@@ -42,8 +42,6 @@ from coffeebot.fleet.protocol import (
     ActionKind,
     Assignment,
     BadMessage,
-    Connection,
-    ConnectionState,
     DeliveryReport,
     FleetMessage,
     InstantAction,
@@ -176,7 +174,7 @@ class FleetBridge(Module):
         backoff = Backoff(0.5, self.cfg.reconnect_max_s)
         while True:
             try:
-                async with fleet_client(
+                async with fleet_session(
                     self.cfg.broker,
                     self.credentials,
                     f"coffeebot-{self.robot}",
@@ -194,8 +192,6 @@ class FleetBridge(Module):
             await ctx.clock.sleep(backoff.next_delay())
 
     async def _online(self, ctx: ModuleContext, client: aiomqtt.Client) -> None:
-        online = Connection(state=ConnectionState.ONLINE, at_s=time.time())
-        await client.publish(self.topic("connection"), encode(online), qos=1, retain=True)
         await client.subscribe([(self.topic(kind), 1) for kind in DISPATCHER_TO_ROBOT])
         self._client = client
         self._offline_since = None
