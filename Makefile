@@ -36,7 +36,7 @@ system-deps:
 test: $(STAMP) system-deps
 	$(BIN)/ruff check src tests bench
 	$(BIN)/mypy
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n auto --dist loadgroup
 
 # Refresh the README's screenshots from the browser tests.
 screenshots: $(STAMP) system-deps

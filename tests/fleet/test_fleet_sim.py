@@ -49,12 +49,15 @@ SPEED = 2.0
 most this fast, so a message's time on the wire stays small in simulated time however busy
 the machine is."""
 
+pytestmark = pytest.mark.xdist_group("test_fleet_sim")
+"""Its tests share one fleet run: on one test worker, made once."""
+
+
 @dataclass
 class Sample:
     t_s: float
     poses: list[tuple[float, float, float, int]]
     """(x, y, heading in degrees, floor) per robot."""
-
 
 @dataclass
 class FleetRun:

@@ -66,6 +66,9 @@ door edge that a live pass missed door 213 in about one run of seven; at 300 mm/
 DOOR_INPUTS = [RANGE_SCAN, CURRENT_STATE, ORDER_DISPATCH, MOVE_INSTRUCTION]
 """What the door module reads; its output (``perception/door``) is not replayed."""
 
+pytestmark = pytest.mark.xdist_group("test_recorded_pass")
+"""Its tests share one recorded pass: on one test worker, made once."""
+
 
 class LaneDriver(Module):
     """Drives down the hallway on ground truth, so the pass depends on the door module alone

@@ -41,6 +41,9 @@ PLAN = load_floorplan(PLAN_FILE)
 SETUP = robot_setup(CONFIG.tof)
 """The chips set up as the ToF poller sets them up."""
 
+pytestmark = pytest.mark.xdist_group("test_survey_check")
+"""Its tests share one recorded pass: on one test worker, made once."""
+
 
 async def record_pass(path: Path) -> None:
     """Floor 2 from 15.5 to 20.5 m keeping right: door 206 (right, 18 m) 300 mm away."""

@@ -57,7 +57,7 @@ from coffeebot.store import OrderStore
 from coffeebot.web import WebDeps, WebModule
 from coffeebot.web.livemap import MapPose
 
-pytestmark = pytest.mark.asyncio(loop_scope="module")
+pytestmark = [pytest.mark.asyncio(loop_scope="module"), pytest.mark.xdist_group("test_browser")]
 
 CHROMIUM = Path("/usr/bin/chromium")
 CHROMIUM_ARGS = [
