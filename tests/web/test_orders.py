@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import asyncio
 import logging
 from pathlib import Path
 
 import pytest
 
 from coffeebot.board import Board, Subscription
+from coffeebot.config import SupervisionConfig
 from coffeebot.daemon import Daemon
 from coffeebot.errors import OrderError
 from coffeebot.messages import (
@@ -16,9 +18,11 @@ from coffeebot.messages import (
     ORDER_DISPATCH,
     ORDER_UPDATE,
     DeliveryUpdate,
+    HealthStatus,
     OrderStatus,
     OrderUpdate,
 )
+from coffeebot.modules.base import Module, ModuleContext
 from coffeebot.modules.orders import OrdersModule
 from coffeebot.orders import OrdersUnavailable
 from coffeebot.store import OrderStore
@@ -180,3 +184,49 @@ def kill(daemon: Daemon, store: OrderStore) -> None:
         assert state.task is not None
         state.task.cancel()
     store.close()
+
+
+class CrashingNavigation(Module):
+    """Takes the first order it is given, then crashes on every run: the supervisor gives
+    it up, as it would a navigation module with a bug that every restart meets again."""
+
+    name = "navigation"
+    inputs = (ORDER_DISPATCH,)
+    outputs = (DELIVERY_STATUS,)
+
+    def __init__(self) -> None:
+        self.runs = 0
+
+    async def run(self, ctx: ModuleContext) -> None:
+        self.runs += 1
+        if self.runs == 1:
+            dispatched = await ctx.board.next(ORDER_DISPATCH)
+            ctx.board.publish(
+                DELIVERY_STATUS,
+                DeliveryUpdate(order_id=dispatched.msg.order_id, status=OrderStatus.ON_THE_WAY),
+            )
+        raise RuntimeError("no route to room 205")
+
+
+async def test_navigation_given_up_fails_its_order_and_the_queue_waits(
+    board: Board, store: OrderStore, updates: Subscription[OrderUpdate]
+) -> None:
+    orders = OrdersModule(store)
+    navigation = CrashingNavigation()
+    supervision = SupervisionConfig(
+        restart_backoff_s=0.01, restart_backoff_max_s=0.01, max_restarts=2, failure_window_s=60
+    )
+    daemon = Daemon(board, [orders, navigation], supervision)
+    await daemon.start()
+    try:
+        first = await orders.place(new_order(name="A"), client="c")
+        async with asyncio.timeout(10):
+            await until(updates, first.id, OrderStatus.FAILED)
+        failed = await orders.get(first.id)
+        assert "navigation stopped working" in failed.detail
+        assert "no route to room 205" in failed.detail
+        assert daemon.states["navigation"].status is HealthStatus.FAILED
+        second = await orders.place(new_order(name="B"), client="c")
+        assert second.status is OrderStatus.QUEUED, "nothing is handed to a navigation given up"
+    finally:
+        await daemon.shutdown()

@@ -71,6 +71,8 @@ _REPORTABLE_FROM: dict[OrderStatus, tuple[OrderStatus, ...]] = {
 }
 
 WRITABLE, UNWRITABLE = "writable", "unwritable"
+NAVIGATION = "navigation"
+"""The module that carries the dispatched order (its health is watched)."""
 
 
 class OrdersModule(Module):
@@ -78,7 +80,7 @@ class OrdersModule(Module):
     :class:`~coffeebot.orders.Orders` for the web."""
 
     name = "orders"
-    inputs = (DELIVERY_STATUS,)
+    inputs = (DELIVERY_STATUS, HEALTH)
     outputs = (ORDER_DISPATCH, ORDER_UPDATE, HEALTH)
 
     def __init__(self, store: OrderStore, config: StoreConfig | None = None) -> None:
@@ -89,6 +91,7 @@ class OrdersModule(Module):
         self._recovered = False
         self._lock = asyncio.Lock()
         self._reports: Subscription[DeliveryUpdate] | None = None
+        self._healths: Subscription[Health] | None = None
         self._unwritten: deque[DeliveryUpdate] = deque()
         """Navigation's reports for the current order, in order, until each is stored."""
         self._wake = asyncio.Event()
@@ -96,6 +99,8 @@ class OrdersModule(Module):
         self._failing_since: float | None = None
         self._health: HealthStatus | None = None
         self._store_log: Transitions | None = None
+        self._navigation_failed: str | None = None
+        """Why the supervisor gave navigation up; no order is dispatched to it after that."""
 
     @property
     def current(self) -> str | None:
@@ -210,7 +215,7 @@ class OrdersModule(Module):
     async def _dispatch_next(self) -> None:
         """Hand the oldest queued order to navigation unless one is already out."""
         async with self._lock:
-            while self._current is None:
+            while self._current is None and self._navigation_failed is None:
                 queued = await self.store.with_status((OrderStatus.QUEUED,), limit=1)
                 if not queued:
                     return
@@ -239,6 +244,31 @@ class OrdersModule(Module):
             )
             return
         self._unwritten.append(update)
+
+    def _on_health(self, health: Health) -> None:
+        """Navigation given up by the supervisor (it crashed too often) cannot end the order
+        it carries: the order fails with that reason instead of staying "on the way", and
+        the queue waits for a restart rather than feeding orders to nobody."""
+        if health.module != NAVIGATION or health.component:
+            return
+        if health.status is not HealthStatus.FAILED or self._navigation_failed is not None:
+            return
+        self._navigation_failed = health.detail or "failed"
+        log.error(
+            "navigation failed: no order is dispatched until the daemon restarts",
+            extra={"event": Event.FAULT.value, "cause": self._navigation_failed},
+        )
+        if self._current is not None:
+            self._unwritten.append(
+                DeliveryUpdate(
+                    order_id=self._current,
+                    status=OrderStatus.FAILED,
+                    detail=(
+                        f"the robot's navigation stopped working ({self._navigation_failed}); "
+                        "staff will check on the cup"
+                    ),
+                )
+            )
 
     async def _store(self, update: DeliveryUpdate) -> None:
         allowed = _REPORTABLE_FROM.get(update.status, ())
@@ -312,21 +342,30 @@ class OrdersModule(Module):
 
     # --- the task --------------------------------------------------------------------------
 
-    async def _next_event(self, reports: Subscription[DeliveryUpdate]) -> None:
-        """Wait for a report from navigation or a placed order waiting for its dispatch."""
+    async def _next_event(
+        self, reports: Subscription[DeliveryUpdate], health: Subscription[Health]
+    ) -> None:
+        """Wait for a report from navigation, a module's health, or a placed order waiting
+        for its dispatch."""
         if self._wake.is_set():
             self._wake.clear()
             return
         report = asyncio.ensure_future(reports.get())
+        unwell = asyncio.ensure_future(health.get())
         wake = asyncio.ensure_future(self._wake.wait())
         try:
-            done, _ = await asyncio.wait({report, wake}, return_when=asyncio.FIRST_COMPLETED)
+            done, _ = await asyncio.wait(
+                {report, unwell, wake}, return_when=asyncio.FIRST_COMPLETED
+            )
         finally:
             report.cancel()
+            unwell.cancel()
             wake.cancel()
         self._wake.clear()
         if report in done:
             self._receive(report.result().msg)
+        if unwell in done:
+            self._on_health(unwell.result().msg)
 
     async def run(self, ctx: ModuleContext) -> None:
         if self._reports is None or self._reports.overflowed:
@@ -334,6 +373,11 @@ class OrdersModule(Module):
                 self._reports.close()
             self._reports = ctx.board.subscribe(DELIVERY_STATUS)
         reports = self._reports
+        if self._healths is None or self._healths.overflowed:
+            if self._healths is not None:
+                self._healths.close()
+            self._healths = ctx.board.subscribe(HEALTH)
+        healths = self._healths
         self._board = ctx.board
         if self._store_log is None:
             self._store_log = Transitions(ctx.log, initial={"store": WRITABLE})
@@ -343,6 +387,8 @@ class OrdersModule(Module):
             while True:
                 while (envelope := reports.get_nowait()) is not None:
                     self._receive(envelope.msg)
+                while (unwell := healths.get_nowait()) is not None:
+                    self._on_health(unwell.msg)
                 try:
                     await self._catch_up()
                 except StoreError as exc:
@@ -351,7 +397,7 @@ class OrdersModule(Module):
                     continue
                 retry.reset()
                 self._store_written(ctx, store)
-                await self._next_event(reports)
+                await self._next_event(reports, healths)
         finally:
             self._board = None
 
