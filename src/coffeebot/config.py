@@ -805,9 +805,6 @@ class ElevatorConfig(Section):
 class NavigationConfig(Section):
     """Delivery timing: nothing waits forever."""
 
-    base_room: str = Field(
-        "Tea room", min_length=1, description="where cups are loaded and the robot parks"
-    )
     base_depth_mm: float = Field(
         700.0,
         gt=0,

@@ -144,7 +144,7 @@ async def test_every_order_is_delivered_without_a_contact(fleet_run: FleetRun) -
 @pytest.mark.asyncio(loop_scope="module")
 async def test_the_loading_spot_holds_one_robot_at_a_time(fleet_run: FleetRun) -> None:
     planner = RoutePlanner(PLAN, BOARD.motion, BOARD.navigation, BOARD.geometry.width_mm)
-    base = PLAN.find_room(BOARD.navigation.base_room)
+    base = PLAN.tea_room
     spot = planner.inside_point(
         base.floor, base.door, base.door.recess_mm + BOARD.navigation.base_depth_mm
     )

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import math
 
-from helpers import CONFIG, PLAN
+from helpers import CONFIG, PLAN, ROOT
 
+from coffeebot.floorplan import load_floorplan
 from coffeebot.messages import DeliveryProblem, OrderStatus
 from coffeebot.navigation.control import SpeedProfile, wheel_speeds
 from coffeebot.navigation.lifecycle import DeliveryLifecycle
@@ -161,3 +162,16 @@ def test_a_route_is_drawn_as_one_leg_per_floor_from_where_the_robot_stands() -> 
     door = PLAN.find_room("307").door
     s, d = PLAN.floor(3).to_hallway(*second.points[-1])
     assert math.isclose(s, door.at_mm) and abs(d) < PLAN.floor(3).hallway.width_mm / 2
+
+
+def test_the_base_is_the_plans_tea_room_whatever_it_is_called() -> None:
+    """The example building calls its tea room "Kitchen": the way home is found by the
+    door's kind, not by a name (a name lookup crashed navigation on the way back)."""
+    plan = load_floorplan(ROOT / "floorplans" / "example.toml")
+    planner = RoutePlanner(plan, CONFIG.motion, CONFIG.navigation, CONFIG.geometry.width_mm)
+    assert planner.base.door.room == "Kitchen"
+    route = planner.route(1, plan.find_room("101").door.at_mm, planner.base)
+    [*_, last] = [m.instruction for m in moves(route) if m.instruction.action == "drive_to"]
+    assert last.x_mm is not None and last.y_mm is not None
+    _, d = plan.floor(1).to_hallway(last.x_mm, last.y_mm)
+    assert abs(d) > plan.floor(1).hallway.width_mm / 2, "parked inside the Kitchen"

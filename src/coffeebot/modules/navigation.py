@@ -76,7 +76,7 @@ class DeliveryAborted(DeliveryError):
 
 def parking_spot(config: RobotConfig, plan: FloorPlan) -> ParkingSpot:
     """A fleet robot's own place to wait in the base room (``[fleet] parking_spot``)."""
-    loc = plan.find_room(config.navigation.base_room)
+    loc = plan.tea_room
     spots = loc.floor.parking
     index = config.fleet.parking_spot
     if index >= len(spots):

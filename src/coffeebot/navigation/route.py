@@ -103,7 +103,7 @@ class RoutePlanner:
 
     @property
     def base(self) -> Place:
-        loc = self.plan.find_room(self.nav.base_room)
+        loc = self.plan.tea_room
         return Place(loc.floor.level, loc.door, inside=True)
 
     def door_place(self, room: str) -> Place:
@@ -199,7 +199,7 @@ class RoutePlanner:
             s = leave.at_mm
             lane = self.lane_mm(floor, self._direction(floor, s, goal))
             steps.append(self._drive_to(floor, floor.from_hallway(s, lane), f"out of {leave.room}"))
-            if self.parking is not None and leave.room == self.nav.base_room:
+            if self.parking is not None and leave.room == self.plan.tea_room.door.room:
                 # A fleet's robot leaves from the loading spot (:meth:`loading`), holding it.
                 steps.append(Lease("loading_spot", False))
         if goal.floor != floor_level:

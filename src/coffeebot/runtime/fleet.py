@@ -169,7 +169,7 @@ async def build_fleet_sim(
     while the context is open. ``dispatcher_extra`` and ``robot_extra(robot id)``: modules
     added to their daemons (simulated staff, a benchmark's probes)."""
     clock = SteppedClock(speed)
-    base = plan.find_room(config.navigation.base_room)
+    base = plan.tea_room
     spots = base.floor.parking
     if count > len(spots):
         raise ConfigError(
