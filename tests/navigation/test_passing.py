@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import math
 
-from helpers import CONFIG, PLAN
+from helpers import CONFIG, PLAN, estimate_at
 
-from coffeebot.messages import OtherRobot
+from coffeebot.messages import MoveInstruction, OtherRobot, Traffic
+from coffeebot.modules.motion import MotionModule
 from coffeebot.navigation.passing import LOOKAHEAD_MM, MAX_AGE_S, oncoming, passing_lane_mm
 from coffeebot.navigation.route import RoutePlanner
 
@@ -91,3 +92,26 @@ def test_the_passing_lane_is_on_the_right_at_its_wall_distance() -> None:
         assert math.isclose(half - abs(lane) - width / 2, 150.0)
         assert math.copysign(1.0, lane) == math.copysign(1.0, keep_right)
         assert abs(lane) > abs(keep_right)
+
+
+def lane_keeping(lane_mm: float, to_s: float, traffic: bool = True) -> str | None:
+    """Whom the passing lane is kept for after one period in the lane at ``ME_S``."""
+    module = MotionModule(CONFIG, PLAN)
+    if traffic:
+        module.controller.note_traffic(Traffic(robots=[other(17000)]), 0.0)
+    x, y = FLOOR.from_hallway(ME_S, lane_mm)
+    instruction = MoveInstruction(
+        id=1, action="follow_lane", floor=2, target_s_mm=to_s, lane_mm=lane_mm
+    )
+    module.controller.step(instruction, estimate_at(2, x, y, HEADING), 0.5, 0.05, 500.0)
+    return module.controller.passing
+
+
+def test_motion_keeps_the_passing_lane_only_in_place_of_a_keep_right_lane() -> None:
+    planner = RoutePlanner(PLAN, CONFIG.motion, CONFIG.navigation, CONFIG.geometry.width_mm)
+    keep_right = planner.lane_mm(FLOOR, 1.0)
+    assert lane_keeping(keep_right, 24000) == "robot-2"
+    assert lane_keeping(keep_right, 24000, traffic=False) is None
+    assert lane_keeping(-keep_right, 24000) is None, "pulled over to a door on the left"
+    stop_near = ME_S + CONFIG.motion.approach_mm - 100
+    assert lane_keeping(keep_right, stop_near) is None, "the last stretch before a stop"
