@@ -528,6 +528,30 @@ class FleetView(Message):
     """Whether the dispatcher is connected to the broker."""
 
 
+class OtherRobot(Message):
+    """Another robot of the fleet where the dispatcher last heard it was."""
+
+    robot: str
+    floor: int
+    x_mm: float
+    y_mm: float
+    heading_deg: float
+    moving: bool
+    """Driving (moving or going round something) when it reported: not standing."""
+    reported_at_s: float
+    """Its own wall clock when it reported, Unix seconds."""
+    age_s: float = Field(ge=0)
+    """How old the report was when the dispatcher sent this (the dispatcher's clock)."""
+
+
+class Traffic(Message):
+    """The fleet's other robots with a known pose, from the dispatcher about twice a
+    second: motion keeps to the passing lane when one comes the other way in the hallway
+    (:mod:`coffeebot.navigation.passing`). A single robot never gets any."""
+
+    robots: list[OtherRobot] = []
+
+
 HEALTH = Topic("system/health", Health, Delivery.RELIABLE, queue_size=1024)
 RANGE_SCAN = Topic("tof/scan", RangeScan, Delivery.LATEST)
 UWB_FIX = Topic("uwb/fix", UwbFix, Delivery.LATEST)
@@ -551,6 +575,7 @@ ELEVATOR_STATE = Topic("elevator/state", ElevatorState, Delivery.LATEST)
 LEASE_NEED = Topic("fleet/lease_need", LeaseNeed, Delivery.RELIABLE)
 LEASE_STATE = Topic("fleet/leases", LeaseState, Delivery.LATEST)
 FLEET = Topic("fleet/robots", FleetView, Delivery.LATEST)
+TRAFFIC = Topic("fleet/traffic", Traffic, Delivery.LATEST)
 
 ALL_TOPICS: tuple[Topic[Any], ...] = (
     HEALTH,
@@ -576,4 +601,5 @@ ALL_TOPICS: tuple[Topic[Any], ...] = (
     LEASE_NEED,
     LEASE_STATE,
     FLEET,
+    TRAFFIC,
 )

@@ -1,6 +1,6 @@
 """The dispatcher's bookkeeping, fed robots' messages directly (the broker's part is tested
 with the real broker in test_fleet_broker.py): assignment on acknowledgement, refusals,
-cancel before acknowledgement, stale robots, lost orders, reports applied once."""
+cancel before acknowledgement, stale robots, lost orders, reports applied once, traffic."""
 
 from __future__ import annotations
 
@@ -24,6 +24,7 @@ from coffeebot.fleet.protocol import (
     LeaseGrant,
     LeaseRequest,
     RobotState,
+    Traffic,
 )
 from coffeebot.floorplan import load_floorplan
 from coffeebot.messages import OrderStatus
@@ -216,3 +217,23 @@ async def test_a_place_freed_goes_to_the_next_robot_unasked(harness: Harness) ->
     harness.dispatcher.on_lease("r1", LeaseRequest(request_id="3", place="elevator", want=False))
     robot, handed = harness.sent[-1]
     assert robot == "r2" and isinstance(handed, LeaseGrant) and handed.granted
+
+
+async def test_traffic_tells_each_online_robot_the_others_with_their_age(
+    harness: Harness,
+) -> None:
+    await harness.robot_reports("r1")
+    await harness.robot_reports("r2")
+    await harness.dispatcher.on_connection(
+        "r3", Connection(state=ConnectionState.ONLINE, at_s=time.time())
+    )  # no pose yet: told of the others, but in nobody's traffic
+    harness.clock.t += 0.4
+    harness.dispatcher.traffic()
+    traffic = {r: m for r, m in harness.sent if isinstance(m, Traffic)}
+    assert [o.robot for o in traffic["r1"].robots] == ["r2"]
+    assert [o.robot for o in traffic["r2"].robots] == ["r1"]
+    assert [o.robot for o in traffic["r3"].robots] == ["r1", "r2"]
+    seen = traffic["r1"].robots[0]
+    assert (seen.floor, seen.x_mm, seen.y_mm) == (2, *BASE)
+    assert seen.age_s == pytest.approx(0.4)
+    assert not seen.moving

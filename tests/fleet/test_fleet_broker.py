@@ -34,6 +34,7 @@ from coffeebot.messages import (
     LEASE_STATE,
     OPERATOR_EVENT,
     ORDER_DISPATCH,
+    TRAFFIC,
     CurrentState,
     DeliveryUpdate,
     HealthStatus,
@@ -391,3 +392,21 @@ async def test_a_shared_place_is_one_robots_and_passes_to_the_other_when_given_b
         return holds("robot-2") and not holds("robot-1")
 
     await fleet.until(second, "robot-2 gets it once robot-1 gives it back")
+
+
+async def test_each_robot_is_told_where_the_other_is(fleet: Fleet) -> None:
+    def traffic_names(robot: str, other: str) -> Callable[[], Awaitable[bool]]:
+        async def check() -> bool:
+            traffic = fleet.robots[robot].board.latest(TRAFFIC)
+            return traffic is not None and [r.robot for r in traffic.msg.robots] == [other]
+
+        return check
+
+    for robot, other in [("robot-1", "robot-2"), ("robot-2", "robot-1")]:
+        await fleet.until(traffic_names(robot, other), f"{robot}'s board has {other}'s pose")
+    traffic = fleet.robots["robot-1"].board.latest(TRAFFIC)
+    assert traffic is not None
+    seen = traffic.msg.robots[0]
+    # Where its StandInNavigation stands it.
+    assert (seen.floor, seen.x_mm, seen.y_mm, seen.heading_deg) == (2, 36000, -300, 90)
+    assert not seen.moving and seen.age_s < DISPATCH.stale_after_s

@@ -27,6 +27,9 @@ The rules, and why:
   left the tea room is never given to another robot.
 - **Shared places** (the elevator, the loading spot) are lent by a :class:`LeaseBook`: one
   robot at a time, in the order they asked, expiring unless renewed.
+- **Traffic.** Each online robot is told where the others are (:meth:`Dispatcher.traffic`,
+  about twice a second), so two meeting head-on in the hallway both keep to their passing
+  lanes: their sensors alone see only an obstacle that will not let them by.
 """
 
 from __future__ import annotations
@@ -54,9 +57,17 @@ from coffeebot.fleet.protocol import (
     LeaseGrant,
     LeaseRequest,
     RobotState,
+    Traffic,
+    TrafficRobot,
 )
 from coffeebot.logs import Event, log_event
-from coffeebot.messages import FleetRobot, HealthStatus, OperatorKind, OrderStatus
+from coffeebot.messages import (
+    FleetRobot,
+    HealthStatus,
+    MotionState,
+    OperatorKind,
+    OrderStatus,
+)
 from coffeebot.orders import OrderNotFound, OrdersUnavailable, WrongOrderKey
 from coffeebot.store import IN_FLIGHT, NewOrder, Order, OrderStore, PlacedOrder
 
@@ -73,6 +84,7 @@ _REPORTABLE_FROM: dict[OrderStatus, tuple[OrderStatus, ...]] = {
     OrderStatus.CANCELLED: IN_FLIGHT,
 }
 LEFT_BASE = tuple(s for s in IN_FLIGHT if s is not OrderStatus.PREPARING)
+DRIVING = (MotionState.MOVING, MotionState.AVOIDING)
 
 
 @dataclass
@@ -83,6 +95,8 @@ class RobotRecord:
     connection: ConnectionState = ConnectionState.OFFLINE
     state: RobotState | None = None
     heard_at_s: float | None = None
+    state_at_s: float | None = None
+    """When its last state report came (the dispatcher's clock)."""
     stale_since_s: float | None = None
     order_id: str | None = None
     """The order the dispatcher gave it and that has not ended."""
@@ -172,6 +186,7 @@ class Dispatcher:
         ):
             return  # an old report delivered late
         record.state = state
+        record.state_at_s = self.now()
         record.connection = ConnectionState.ONLINE
         self._heard(record)
         await self._reconcile(record)
@@ -414,6 +429,40 @@ class Dispatcher:
         self.send(
             robot, InstantAction(action_id=f"x{next(self._ids)}", kind=kind, order_id=order_id)
         )
+
+    # --- traffic ----------------------------------------------------------------------------
+
+    def traffic(self) -> None:
+        """Tell every online robot where the others with a known pose are."""
+        now = self.now()
+        placed: dict[str, TrafficRobot] = {}
+        for record in self.robots.values():
+            s = record.state
+            if (
+                record.stale
+                or s is None
+                or record.state_at_s is None
+                or s.floor is None
+                or s.x_mm is None
+                or s.y_mm is None
+                or s.heading_deg is None
+            ):
+                continue
+            placed[record.robot] = TrafficRobot(
+                robot=record.robot,
+                floor=s.floor,
+                x_mm=s.x_mm,
+                y_mm=s.y_mm,
+                heading_deg=s.heading_deg,
+                moving=s.motion in DRIVING,
+                reported_at_s=s.at_s,
+                age_s=max(0.0, now - record.state_at_s),
+            )
+        for record in self.robots.values():
+            if record.stale or record.connection is not ConnectionState.ONLINE:
+                continue
+            others = [p for robot, p in sorted(placed.items()) if robot != record.robot]
+            self.send(record.robot, Traffic(robots=others))
 
     # --- people -----------------------------------------------------------------------------
 

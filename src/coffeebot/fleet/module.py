@@ -61,6 +61,9 @@ MakeDispatcher = Callable[[Send, Announce, Callable[[], float]], Dispatcher]
 
 TICK_S = 1.0
 """How often time-driven rules run (stale robots, resends, assignment)."""
+TRAFFIC_S = 0.5
+"""How often each robot is told where the others are: two robots meeting head-on close at
+1 m/s, and a robot looks 6 m ahead for them."""
 CONNECTED, DISCONNECTED = "connected", "disconnected"
 
 
@@ -137,6 +140,7 @@ class DispatcherModule(Module):
         with events, estops:
             async with asyncio.TaskGroup() as group:
                 group.create_task(self._tick(ctx, dispatcher))
+                group.create_task(self._traffic(ctx, dispatcher))
                 group.create_task(self._people(ctx, dispatcher, events, estops))
                 await self._connect_forever(ctx, dispatcher, link)
 
@@ -152,6 +156,14 @@ class DispatcherModule(Module):
             finally:
                 waiting.cancel()
                 sleeping.cancel()
+
+    async def _traffic(self, ctx: ModuleContext, dispatcher: Dispatcher) -> None:
+        """Traffic while the broker is there: queued without it, it would all go at once,
+        stale, on the reconnect."""
+        while True:
+            if dispatcher.link_up_since_s is not None:
+                dispatcher.traffic()
+            await ctx.clock.sleep(TRAFFIC_S)
 
     def _publish_view(self, ctx: ModuleContext, dispatcher: Dispatcher) -> None:
         linked = dispatcher.link_up_since_s is not None

@@ -16,6 +16,8 @@ so a message is either exactly what this version means or refused with the reaso
     coffeebot/v1/robots/{robot}/assignment   dispatcher QoS 1: the order to deliver next
     coffeebot/v1/robots/{robot}/action       dispatcher QoS 1: e-stop, cancel, cup loaded...
     coffeebot/v1/robots/{robot}/grant        dispatcher QoS 1: a lease granted or refused
+    coffeebot/v1/robots/{robot}/traffic      dispatcher QoS 0, about twice a second: the
+                                                        other robots' poses, for passing
     coffeebot/v1/dispatcher/connection       dispatcher retained, QoS 1
 
 The version is in the topic, so a robot and a dispatcher of different versions do not
@@ -147,6 +149,27 @@ class LeaseGrant(FleetMessage):
     holder: str | None = None
 
 
+class TrafficRobot(FleetMessage):
+    """Another robot where it last said it was."""
+
+    robot: str = Field(pattern=ROBOT_ID.pattern)
+    floor: int
+    x_mm: float
+    y_mm: float
+    heading_deg: float
+    moving: bool
+    """Its motion was moving or going round something, not standing."""
+    reported_at_s: float = Field(description="the reporting robot's wall clock, Unix seconds")
+    age_s: float = Field(ge=0, description="how long ago the dispatcher heard it")
+
+
+class Traffic(FleetMessage):
+    """The fleet's other robots with a known pose, so two meeting in the hallway both move
+    over to their passing lanes (docs/fleet.md, "Passing in the hallway")."""
+
+    robots: list[TrafficRobot] = Field(default_factory=list, max_length=64)
+
+
 M = TypeVar("M", bound=FleetMessage)
 
 ROBOT_TO_DISPATCHER: dict[str, type[FleetMessage]] = {
@@ -160,10 +183,11 @@ DISPATCHER_TO_ROBOT: dict[str, type[FleetMessage]] = {
     "assignment": Assignment,
     "action": InstantAction,
     "grant": LeaseGrant,
+    "traffic": Traffic,
 }
-QOS: dict[str, int] = {"state": 0}
-"""QoS 1 (at least once) for everything but the frequent state reports: each of those is
-superseded a fraction of a second later."""
+QOS: dict[str, int] = {"state": 0, "traffic": 0}
+"""QoS 1 (at least once) for everything but the frequent state reports and traffic: each of
+those is superseded a fraction of a second later."""
 
 
 def robot_topic(robot: str, kind: str) -> str:

@@ -6,8 +6,8 @@ the robot's board. Out to the broker (``coffeebot.fleet.protocol``): the connect
 state report a few times a second (pose, motion, safety verdict, health, e-stop, the order it
 works on), navigation's delivery reports (numbered, QoS 1), lease requests and acks. In from
 the dispatcher: the next order (``orders/dispatch`` on the board; refused while it carries
-another), instant actions (``operator/event``, ``operator/estop``) and lease grants
-(``fleet/leases``).
+another), instant actions (``operator/event``, ``operator/estop``), lease grants
+(``fleet/leases``) and where the other robots are (``fleet/traffic``, for passing them).
 
 **Nothing here is part of the safety loop**, and a robot that loses the broker finishes the
 delivery it carries: navigation's reports are kept, in order, until the broker has them, and
@@ -48,6 +48,7 @@ from coffeebot.fleet.protocol import (
     LeaseGrant,
     LeaseRequest,
     RobotState,
+    Traffic,
     decode,
     encode,
     parse_robot_topic,
@@ -65,6 +66,7 @@ from coffeebot.messages import (
     MOTION_STATUS,
     OPERATOR_EVENT,
     ORDER_DISPATCH,
+    TRAFFIC,
     DeliveryUpdate,
     EStop,
     Health,
@@ -75,9 +77,11 @@ from coffeebot.messages import (
     OperatorEvent,
     OperatorKind,
     OrderDispatch,
+    OtherRobot,
     SafetyState,
     SharedPlace,
 )
+from coffeebot.messages import Traffic as BoardTraffic
 from coffeebot.modules.backoff import Backoff
 from coffeebot.modules.base import Module, ModuleContext
 
@@ -123,7 +127,7 @@ class BridgeCounters:
 class FleetBridge(Module):
     name = "fleet"
     inputs = (DELIVERY_STATUS, CURRENT_STATE, MOTION_STATUS, COLLISION, HEALTH, ESTOP, LEASE_NEED)
-    outputs = (ORDER_DISPATCH, OPERATOR_EVENT, ESTOP, LEASE_STATE, HEALTH)
+    outputs = (ORDER_DISPATCH, OPERATOR_EVENT, ESTOP, LEASE_STATE, HEALTH, TRAFFIC)
 
     def __init__(self, config: RobotConfig, credentials: Credentials | None = None) -> None:
         self.robot = config.robot_id
@@ -315,6 +319,9 @@ class FleetBridge(Module):
             return self._act(ctx, message)
         if isinstance(message, LeaseGrant):
             self._grant(ctx, message)
+        if isinstance(message, Traffic):
+            others = [OtherRobot(**robot.model_dump()) for robot in message.robots]
+            ctx.board.publish(TRAFFIC, BoardTraffic(robots=others))
         return None
 
     def _assigned(self, ctx: ModuleContext, assignment: Assignment) -> Ack:

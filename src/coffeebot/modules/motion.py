@@ -37,6 +37,7 @@ from coffeebot.messages import (
     MOVE_INSTRUCTION,
     ODOMETRY,
     RANGE_SCAN,
+    TRAFFIC,
     CollisionStatus,
     EStop,
     HealthStatus,
@@ -110,7 +111,16 @@ def safety_gate(
 
 class MotionModule(Module):
     name = "motion"
-    inputs = (MOVE_INSTRUCTION, CURRENT_STATE, COLLISION, ESTOP, HEALTH, RANGE_SCAN, ODOMETRY)
+    inputs = (
+        MOVE_INSTRUCTION,
+        CURRENT_STATE,
+        COLLISION,
+        ESTOP,
+        HEALTH,
+        RANGE_SCAN,
+        ODOMETRY,
+        TRAFFIC,
+    )
     outputs = (MOTOR_COMMAND, MOTION_STATUS)
     shutdown_order = 0  # with the motor driver: first to stop
     critical = True
@@ -181,6 +191,12 @@ class MotionModule(Module):
                     heading_error_deg=self.cfg.clear_heading_sigmas * pose.sigma_heading_deg
                     + abs(pose.yaw_rate_dps) * self.cfg.pose_lag_s,
                 )
+
+    async def _watch_traffic(self, ctx: ModuleContext) -> None:
+        """The fleet's other robots, for the passing lane (a single robot gets none)."""
+        with ctx.board.subscribe(TRAFFIC) as traffic:
+            async for envelope in traffic:
+                self.controller.note_traffic(envelope.msg, ctx.clock.now())
 
     def gate(self, ctx: ModuleContext) -> Gate:
         """The safety gate from the freshest state on the board: made once per command."""
@@ -313,6 +329,7 @@ class MotionModule(Module):
             async with asyncio.TaskGroup() as group:
                 group.create_task(self._watch_health(ctx))
                 group.create_task(self._map(ctx))
+                group.create_task(self._watch_traffic(ctx))
                 group.create_task(self._loop(ctx))
         finally:
             # A crash or a cancel: the last word to the motors is "stop".

@@ -4,7 +4,11 @@
 obstacle in the lane to the detour (:mod:`coffeebot.navigation.detour`): while it is being
 confirmed the robot stops short of it; while going round and rejoining the Dynamic Window
 Approach steers to the detour's lane; if no arc gets past, the robot is blocked and waits for
-the way to clear. ``drive_to`` turns towards a point, then drives to it on a held heading.
+the way to clear. In a fleet, while another robot comes the other way in the hallway ahead,
+the lane followed is the passing lane, nearer the wall (:mod:`coffeebot.navigation.passing`):
+only on a keep-right lane, never over a detour going round, and given up for the last
+``approach_mm`` before a stop, where the route's turn into a door or the elevator starts
+from the lane. ``drive_to`` turns towards a point, then drives to it on a held heading.
 ``turn`` turns on the spot. The safety gate sits outside this class, in the module, and
 overrides it.
 """
@@ -24,6 +28,7 @@ from coffeebot.messages import (
     MoveInstruction,
     PoseEstimate,
     StopCause,
+    Traffic,
 )
 from coffeebot.navigation.control import (
     SpeedProfile,
@@ -34,6 +39,7 @@ from coffeebot.navigation.control import (
 from coffeebot.navigation.costmap import Footprint, LocalCostmap
 from coffeebot.navigation.detour import DetourPlanner, Phase, Sighting
 from coffeebot.navigation.dwa import DynamicWindow, rollout
+from coffeebot.navigation.passing import oncoming, passing_lane_mm
 from coffeebot.perception.geometry import wrap_deg
 
 AIM_BEFORE_DRIVING_DEG = 10.0
@@ -79,6 +85,14 @@ class MotionController:
         self.detour = DetourPlanner(cfg, costmap, footprint)
         self._line: float | None = None
         """``drive_to``: the direction of the line being followed, fixed at its start."""
+        self._traffic: Traffic | None = None
+        self._traffic_at = 0.0
+        self.passing: str | None = None
+        """The robot the passing lane is kept for, if any."""
+
+    def note_traffic(self, traffic: Traffic, now: float) -> None:
+        """Where the fleet's other robots are, as the dispatcher said at ``now``."""
+        self._traffic, self._traffic_at = traffic, now
 
     def halt(self) -> None:
         """The safety gate stopped the motors: plan from standstill when it lets go."""
@@ -221,8 +235,8 @@ class MotionController:
         cfg = self.cfg
         s, d = floor.to_hallway(pose.x_mm, pose.y_mm)
         direction = self._direction
-        lane = ins.lane_mm if ins.lane_mm is not None else d
         remaining = (ins.target_s_mm - s) * direction
+        lane = self._lane(ins, floor, s, d, direction, remaining, now)
         travel = floor.hallway.heading_deg + (0.0 if direction > 0 else 180.0)
         if ins.stop and remaining <= self.profile.stop_band_mm:
             detail = (
@@ -235,7 +249,10 @@ class MotionController:
         if not ins.stop and remaining <= 0:
             status = self._status(ins.id, MotionState.DONE, now, remaining, "passed the point")
         else:
-            status = self._status(ins.id, MotionState.MOVING, now, remaining, ins.detail)
+            detail = ins.detail
+            if self.passing is not None:
+                detail = f"{detail}; passing lane, {self.passing} coming"
+            status = self._status(ins.id, MotionState.MOVING, now, remaining, detail)
         if (
             abs(wrap_deg(travel - pose.heading_deg)) > AIM_BEFORE_LANE_DEG
             and self.speed < cfg.creep_speed_mm_s
@@ -275,6 +292,40 @@ class MotionController:
         return self._command(
             target, turn_rate_dps(pose.heading_deg, heading, cfg), dt, status, limit
         )
+
+    def _lane(
+        self,
+        ins: MoveInstruction,
+        floor: Floor,
+        s: float,
+        d: float,
+        direction: float,
+        remaining: float,
+        now: float,
+    ) -> float:
+        """The instruction's lane, or the passing lane while another robot comes: only in
+        place of a keep-right lane (not the door side's), and not over the last
+        ``approach_mm`` before a stop."""
+        self.passing = None
+        if ins.lane_mm is None:
+            return d
+        passing = passing_lane_mm(
+            floor, direction, self.cfg.passing_wall_distance_mm, self.footprint.width_mm
+        )
+        keeps_right = ins.lane_mm * direction < 0
+        nearer_wall = abs(passing) > abs(ins.lane_mm)
+        stopping = ins.stop and remaining <= self.cfg.approach_mm
+        if self._traffic is None or not keeps_right or not nearer_wall or stopping:
+            return ins.lane_mm
+        self.passing = oncoming(
+            self._traffic.robots,
+            floor,
+            s,
+            direction,
+            passed_mm=self.footprint.length_mm,
+            age_s=max(0.0, now - self._traffic_at),
+        )
+        return ins.lane_mm if self.passing is None else passing
 
     def _go_round(
         self,

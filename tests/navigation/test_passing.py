@@ -1,0 +1,117 @@
+"""When another robot calls for the passing lane, and where that lane is."""
+
+from __future__ import annotations
+
+import math
+
+from helpers import CONFIG, PLAN, estimate_at
+
+from coffeebot.messages import MoveInstruction, OtherRobot, Traffic
+from coffeebot.modules.motion import MotionModule
+from coffeebot.navigation.passing import LOOKAHEAD_MM, MAX_AGE_S, oncoming, passing_lane_mm
+from coffeebot.navigation.route import RoutePlanner
+
+FLOOR = PLAN.floor(2)
+HEADING = FLOOR.hallway.heading_deg
+LENGTH = CONFIG.geometry.length_mm
+ME_S = 13000.0  # travelling +s
+
+
+def other(
+    s: float,
+    d: float = 445.0,
+    heading: float = HEADING + 180.0,
+    *,
+    floor: int = 2,
+    moving: bool = True,
+    age_s: float = 0.0,
+) -> OtherRobot:
+    x, y = FLOOR.from_hallway(s, d)
+    return OtherRobot(
+        robot="robot-2",
+        floor=floor,
+        x_mm=x,
+        y_mm=y,
+        heading_deg=heading,
+        moving=moving,
+        reported_at_s=0.0,
+        age_s=age_s,
+    )
+
+
+def calls(robot: OtherRobot, traffic_age_s: float = 0.0) -> bool:
+    found = oncoming([robot], FLOOR, ME_S, 1.0, passed_mm=LENGTH, age_s=traffic_age_s)
+    return found is not None
+
+
+def test_a_robot_coming_the_other_way_ahead_calls_for_the_passing_lane() -> None:
+    assert oncoming([other(17000)], FLOOR, ME_S, 1.0, passed_mm=LENGTH) == "robot-2"
+    assert calls(other(ME_S + LOOKAHEAD_MM - 100))
+    assert calls(other(ME_S - LENGTH / 2))  # beside: not past yet
+
+
+def test_one_standing_ahead_calls_for_it_whichever_way_it_faces() -> None:
+    assert calls(other(16000, -445.0, HEADING, moving=False))
+
+
+def test_one_past_behind_or_beyond_the_lookahead_does_not() -> None:
+    assert not calls(other(ME_S - LENGTH - 100))
+    assert not calls(other(9000))
+    assert not calls(other(ME_S + LOOKAHEAD_MM + 100))
+
+
+def test_one_on_another_floor_or_in_a_room_does_not() -> None:
+    assert not calls(other(16000, floor=3))
+    assert not calls(other(16000, d=FLOOR.hallway.width_mm / 2 + 300))
+
+
+def test_stale_traffic_does_not() -> None:
+    assert not calls(other(16000, age_s=MAX_AGE_S + 0.1))
+    assert not calls(other(16000, age_s=1.5), traffic_age_s=1.0)
+
+
+def test_one_driving_away_the_same_way_does_not() -> None:
+    assert not calls(other(16000, -445.0, HEADING))
+    assert not calls(other(16000, -445.0, HEADING + 30.0))
+
+
+def test_travelling_the_other_way_the_sides_swap() -> None:
+    coming = other(10000, -445.0, HEADING)
+    assert oncoming([coming], FLOOR, ME_S, -1.0, passed_mm=LENGTH) == "robot-2"
+    assert oncoming([coming], FLOOR, ME_S, 1.0, passed_mm=LENGTH) is None
+
+
+def test_the_passing_lane_is_on_the_right_at_its_wall_distance() -> None:
+    width = CONFIG.geometry.width_mm
+    half = FLOOR.hallway.width_mm / 2
+    for direction in (1.0, -1.0):
+        lane = passing_lane_mm(FLOOR, direction, 150.0, width)
+        keep_right = RoutePlanner(PLAN, CONFIG.motion, CONFIG.navigation, width).lane_mm(
+            FLOOR, direction
+        )
+        assert math.isclose(half - abs(lane) - width / 2, 150.0)
+        assert math.copysign(1.0, lane) == math.copysign(1.0, keep_right)
+        assert abs(lane) > abs(keep_right)
+
+
+def lane_keeping(lane_mm: float, to_s: float, traffic: bool = True) -> str | None:
+    """Whom the passing lane is kept for after one period in the lane at ``ME_S``."""
+    module = MotionModule(CONFIG, PLAN)
+    if traffic:
+        module.controller.note_traffic(Traffic(robots=[other(17000)]), 0.0)
+    x, y = FLOOR.from_hallway(ME_S, lane_mm)
+    instruction = MoveInstruction(
+        id=1, action="follow_lane", floor=2, target_s_mm=to_s, lane_mm=lane_mm
+    )
+    module.controller.step(instruction, estimate_at(2, x, y, HEADING), 0.5, 0.05, 500.0)
+    return module.controller.passing
+
+
+def test_motion_keeps_the_passing_lane_only_in_place_of_a_keep_right_lane() -> None:
+    planner = RoutePlanner(PLAN, CONFIG.motion, CONFIG.navigation, CONFIG.geometry.width_mm)
+    keep_right = planner.lane_mm(FLOOR, 1.0)
+    assert lane_keeping(keep_right, 24000) == "robot-2"
+    assert lane_keeping(keep_right, 24000, traffic=False) is None
+    assert lane_keeping(-keep_right, 24000) is None, "pulled over to a door on the left"
+    stop_near = ME_S + CONFIG.motion.approach_mm - 100
+    assert lane_keeping(keep_right, stop_near) is None, "the last stretch before a stop"

@@ -1,0 +1,153 @@
+"""Two robots meeting head-on in the floor-2 hallway, each in its keep-right lane, on the
+simulated world: with each other's poses as traffic they pass; without, they do not."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from helpers import CONFIG, DT, PLAN, SETUP
+
+from coffeebot.messages import (
+    MotionState,
+    MoveInstruction,
+    OtherRobot,
+    PoseEstimate,
+    RangeScan,
+    SafetyState,
+    Traffic,
+)
+from coffeebot.modules.motion import MotionModule
+from coffeebot.navigation.control import wheel_speeds
+from coffeebot.navigation.route import RoutePlanner
+from coffeebot.perception.collision import CollisionMonitor
+from coffeebot.perception.walls import explainer
+from coffeebot.sim.world import Pose, RobotSpec, World
+from coffeebot.sim.world.tof import as_range_reading
+from coffeebot.sim.world.world import WorldRobot
+
+FLOOR = PLAN.floor(2)
+PLANNER = RoutePlanner(PLAN, CONFIG.motion, CONFIG.navigation, CONFIG.geometry.width_mm)
+
+
+@dataclass
+class Meeting:
+    done: list[bool]
+    contacts: int
+
+
+def pose_of(robot: WorldRobot) -> PoseEstimate:
+    return PoseEstimate(
+        x_mm=robot.pose.x_mm,
+        y_mm=robot.pose.y_mm,
+        heading_deg=robot.pose.heading_deg,
+        floor=robot.floor_level,
+        sigma_x_mm=0.0,
+        sigma_y_mm=0.0,
+        sigma_heading_deg=0.0,
+        speed_mm_s=robot.body.state.speed_mm_s,
+    )
+
+
+def seen_as_traffic(name: str, robot: WorldRobot) -> Traffic:
+    """What the dispatcher would tell the other robot of this one."""
+    pose = pose_of(robot)
+    other = OtherRobot(
+        robot=name,
+        floor=pose.floor,
+        x_mm=pose.x_mm,
+        y_mm=pose.y_mm,
+        heading_deg=pose.heading_deg,
+        moving=True,
+        reported_at_s=0.0,
+        age_s=0.0,
+    )
+    return Traffic(robots=[other])
+
+
+def meet(traffic: bool, max_time_s: float) -> Meeting:
+    """Robot a from s=13 m going +s, robot b from s=21 m going -s, each in its lane, each
+    with its own motion module and collision monitor fed ground truth (as ``drive`` does)."""
+    h = FLOOR.hallway.heading_deg
+    lane_a, lane_b = PLANNER.lane_mm(FLOOR, 1.0), PLANNER.lane_mm(FLOOR, -1.0)
+    xa, ya = FLOOR.from_hallway(13000, lane_a)
+    xb, yb = FLOOR.from_hallway(21000, lane_b)
+    world = World(
+        PLAN, RobotSpec.from_config(CONFIG), floor=2, pose=Pose(xa, ya, h), obstacles=[], seed=3
+    )
+    other = world.add_robot(RobotSpec.from_config(CONFIG), 2, Pose(xb, yb, h + 180), "b")
+    robots, names = [world.robot, other], ["robot-a", "robot-b"]
+    instructions = [
+        MoveInstruction(
+            id=1, action="follow_lane", floor=2, target_s_mm=24000, lane_mm=lane_a, avoid=True
+        ),
+        MoveInstruction(
+            id=1, action="follow_lane", floor=2, target_s_mm=10000, lane_mm=lane_b, avoid=True
+        ),
+    ]
+    modules = [MotionModule(CONFIG, PLAN) for _ in robots]
+    monitors = [
+        CollisionMonitor(
+            CONFIG.tof.sensors, CONFIG.collision, max_speed_mm_s=CONFIG.motor.max_speed_mm_s
+        )
+        for _ in robots
+    ]
+    done = [False, False]
+    seq = 0
+    while world.t_s < max_time_s and not all(done):
+        seq += 1
+        if traffic and seq % 10 == 1:  # twice a second
+            for i in (0, 1):
+                modules[i].controller.note_traffic(
+                    seen_as_traffic(names[1 - i], robots[1 - i]), world.t_s
+                )
+        for i, robot in enumerate(robots):
+            if done[i]:
+                robot.command_wheels(0.0, 0.0)
+                continue
+            readings = [as_range_reading(k, r) for k, r in enumerate(robot.scan(SETUP))]
+            scan = RangeScan(cycle_start_s=world.t_s, cycle_time_s=DT, readings=readings)
+            pose = pose_of(robot)
+            module, ins = modules[i], instructions[i]
+            module.costmap.update(scan, FLOOR, pose.x_mm, pose.y_mm, pose.heading_deg, world.t_s)
+            explain = explainer(FLOOR, pose, CONFIG.motion.wall_margin_mm)
+            yaw_rate = math.degrees(robot.body.state.yaw_rate_rad_s)
+            verdict = monitors[i].update(scan, pose.speed_mm_s, seq, yaw_rate, explain)
+            limit = 0.0 if verdict.state is SafetyState.STOP else verdict.speed_limit_mm_s
+            if limit <= 0 and verdict.may_rotate:
+                command = module.controller.step(ins, pose, world.t_s, DT, 0.0)
+                robot.command_wheels(
+                    *wheel_speeds(0.0, command.yaw_rate_dps, CONFIG.motor.wheel_base_mm)
+                )
+            elif limit <= 0 and verdict.may_creep_ahead:
+                creep = CONFIG.collision.creep_ahead_mm_s
+                command = module.controller.step(ins, pose, world.t_s, DT, creep)
+                robot.command_wheels(command.speed_mm_s, command.speed_mm_s)
+            elif limit <= 0:
+                module.controller.halt()
+                robot.command_wheels(0.0, 0.0)
+            else:
+                command = module.controller.step(ins, pose, world.t_s, DT, limit)
+                if command.status.state is MotionState.DONE:
+                    done[i] = True
+                    robot.command_wheels(0.0, 0.0)
+                    continue
+                robot.command_wheels(
+                    *wheel_speeds(
+                        command.speed_mm_s, command.yaw_rate_dps, CONFIG.motor.wheel_base_mm
+                    )
+                )
+        world.step(DT)
+    return Meeting(done, sum(len(r.collisions) for r in robots))
+
+
+def test_with_traffic_both_pass_in_their_passing_lanes() -> None:
+    meeting = meet(traffic=True, max_time_s=60.0)
+    assert meeting.done == [True, True]
+    assert meeting.contacts == 0
+
+
+def test_without_traffic_they_do_not_both_get_past() -> None:
+    meeting = meet(traffic=False, max_time_s=60.0)
+    assert meeting.done != [True, True]
+    assert meeting.contacts == 0
