@@ -42,8 +42,11 @@ def _dump_stacks_and_exit_after(seconds: float) -> None:
 
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
     """A thread a test left waiting would keep the run from ever exiting: if it has not
-    exited ``EXIT_GRACE_S`` after the last test, print every thread's stack and fail."""
-    _dump_stacks_and_exit_after(EXIT_GRACE_S)
+    exited ``EXIT_GRACE_S`` after the last test, print every thread's stack and fail. Not
+    in a pytest-xdist worker, which rightly waits for the others once its share is done: the
+    controlling process is guarded, and it ends its workers."""
+    if not hasattr(session.config, "workerinput"):
+        _dump_stacks_and_exit_after(EXIT_GRACE_S)
 
 
 @pytest.fixture(autouse=True)
