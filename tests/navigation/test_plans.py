@@ -175,3 +175,22 @@ def test_the_base_is_the_plans_tea_room_whatever_it_is_called() -> None:
     assert last.x_mm is not None and last.y_mm is not None
     _, d = plan.floor(1).to_hallway(last.x_mm, last.y_mm)
     assert abs(d) > plan.floor(1).hallway.width_mm / 2, "parked inside the Kitchen"
+
+
+def test_the_way_to_the_elevator_keeps_right_and_pulls_over_near_it() -> None:
+    """The elevator (on the left going towards it) is reached as an office door is: in the
+    keep-right lane, crossing to the elevator's side only for the last ``pull_over_mm``, not
+    on the oncoming side for the whole hallway."""
+    floor = PLAN.floor(2)
+    elevator = floor.elevator
+    assert elevator is not None
+    route = PLANNER.route(2, 10000.0, PLANNER.door_place("305"))
+    before_ride = route.steps[
+        : next(i for i, s in enumerate(route.steps) if isinstance(s, ElevatorRide))
+    ]
+    lanes = [m.instruction for m in before_ride if isinstance(m, Move)]
+    assert [i.lane_mm for i in lanes] == [
+        PLANNER.lane_mm(floor, 1.0),
+        PLANNER.side_lane_mm(floor, elevator),
+    ]
+    assert lanes[0].target_s_mm == elevator.at_mm - CONFIG.navigation.pull_over_mm

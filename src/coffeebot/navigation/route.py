@@ -232,9 +232,24 @@ class RoutePlanner:
         assert elevator is not None  # the floor plan loader guarantees it
         if abs(elevator.at_mm - s) <= self.motion.stop_tolerance_mm:
             return []  # across the hallway from it already (out of the tea room)
-        stop_at = self.turn_point_mm(elevator, 1.0 if elevator.at_mm >= s else -1.0)
+        direction = 1.0 if elevator.at_mm >= s else -1.0
         lane = self.side_lane_mm(floor, elevator)
-        return [self._lane(floor, stop_at, lane, detail=f"to the elevator on {floor.name}")]
+        steps = self._keep_right_first(floor, s, elevator, direction, lane)
+        stop_at = self.turn_point_mm(elevator, direction)
+        steps.append(self._lane(floor, stop_at, lane, detail=f"to the elevator on {floor.name}"))
+        return steps
+
+    def _keep_right_first(
+        self, floor: Floor, s: float, door: Door, direction: float, lane: float
+    ) -> list[Step]:
+        """Keep right along the hallway until ``pull_over_mm`` before ``door``, where the
+        robot crosses to ``lane``, the door's side: on the oncoming side for the whole way it
+        would meet everyone coming the other way head-on."""
+        keep_right = self.lane_mm(floor, direction)
+        pull_over_at = door.at_mm - direction * self.nav.pull_over_mm
+        if lane == keep_right or (pull_over_at - s) * direction <= 0:
+            return []
+        return [self._lane(floor, pull_over_at, keep_right, stop=False, detail="along the hallway")]
 
     def _ride(self, from_level: int, to_level: int, goal: Place) -> ElevatorRide:
         here, there = self.plan.floor(from_level), self.plan.floor(to_level)
@@ -270,15 +285,8 @@ class RoutePlanner:
         steps: list[Step] = []
         side_lane = self.side_lane_mm(floor, door)
         keep_right = self.lane_mm(floor, direction)
-        pull_over_at = door.at_mm - direction * self.nav.pull_over_mm
-        if (
-            self.nav.door_side_lane
-            and side_lane != keep_right
-            and (pull_over_at - s) * direction > 0
-        ):
-            steps.append(
-                self._lane(floor, pull_over_at, keep_right, stop=False, detail="along the hallway")
-            )
+        if self.nav.door_side_lane:
+            steps.extend(self._keep_right_first(floor, s, door, direction, side_lane))
         lane = side_lane if self.nav.door_side_lane or goal.inside else keep_right
         spot = self.parking if goal.inside else None
         turn_at = self.turn_point_mm(door, direction)
