@@ -21,7 +21,16 @@ from pathlib import Path
 from typing import Annotated, Any, Literal, NamedTuple
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    Strict,
+    StrictFloat,
+    StrictInt,
+    ValidationError,
+    model_validator,
+)
 
 from coffeebot.config import read_toml
 from coffeebot.errors import ConfigError
@@ -30,8 +39,10 @@ Side = Literal["left", "right"]
 
 PLAN_MM = 1_000_000.0
 """Every coordinate lies within a kilometre of the origin: a survey typo, not a building."""
-Coordinate = Annotated[float, Field(ge=-PLAN_MM, le=PLAN_MM)]
-Size = Annotated[float, Field(gt=0, le=100_000)]
+# Numbers are strict (an integer still passes for a float): pydantic would read a quoted
+# "42000" as 42000, and a survey with quoted figures is one nobody has checked.
+Coordinate = Annotated[float, Strict(), Field(ge=-PLAN_MM, le=PLAN_MM)]
+Size = Annotated[float, Strict(), Field(gt=0, le=100_000)]
 """A width, depth or height: positive and under 100 m."""
 
 
@@ -82,7 +93,7 @@ class Door(_Model):
     side: Side
     at_mm: Coordinate = Field(description="distance of the door centre along the hallway axis")
     width_mm: Size = 900.0
-    recess_mm: float = Field(100.0, ge=0, le=10_000)
+    recess_mm: StrictFloat = Field(100.0, ge=0, le=10_000)
     height_mm: Size = 2100.0
     kind: Literal["office", "elevator", "tea_room", "other"] = "office"
     open: bool = False
@@ -130,7 +141,7 @@ class ParkingSpot(_Model):
 
     x_mm: Coordinate
     y_mm: Coordinate
-    heading_deg: float = Field(0.0, ge=-360, le=360)
+    heading_deg: StrictFloat = Field(0.0, ge=-360, le=360)
 
 
 class AngleZone(_Model):
@@ -157,7 +168,7 @@ class Anchor(_Model):
     )
     x_mm: Coordinate
     y_mm: Coordinate
-    z_mm: float = Field(2400.0, ge=-10_000, le=100_000)
+    z_mm: StrictFloat = Field(2400.0, ge=-10_000, le=100_000)
 
 
 class WallSegment(NamedTuple):
@@ -187,7 +198,7 @@ def segment_distances(
 
 
 class Floor(_Model):
-    level: int = Field(ge=-100, le=1000)
+    level: StrictInt = Field(ge=-100, le=1000)
     name: str = ""
     wall_height_mm: Size = 2700.0
     hallway: Hallway
@@ -381,7 +392,10 @@ def parse_floorplan(raw: dict[str, Any], path: str | Path = "<floor plan>") -> F
     except ValidationError as exc:
         error = exc.errors()[0]
         element, field = _describe_location(raw, error["loc"])
-        problem = f"{field}: {error['msg']}" if field else error["msg"]
+        message = error["msg"]
+        if error["type"] in ("float_type", "int_type") and isinstance(error["input"], str):
+            message = f"a number was expected, not the string {error['input']!r}"
+        problem = f"{field}: {message}" if field else message
         raise FloorPlanError(path, element, problem) from None
     _check_consistency(plan, path)
     return plan

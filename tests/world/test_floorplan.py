@@ -210,3 +210,14 @@ def test_shipped_file_path_is_in_errors(tmp_path: Path) -> None:
     copy.write_text(text)
     with pytest.raises(FloorPlanError, match=r"cs\.toml: floor 2 / door 203: duplicate id"):
         load_floorplan(copy)
+
+
+def test_a_number_written_as_a_string_is_refused(
+    plan_dict: Callable[..., dict[str, Any]],
+) -> None:
+    """Lax pydantic would read "5000" as 5000; integers still pass for millimetres."""
+    raw = plan_dict()
+    raw["floors"][0]["doors"][0]["at_mm"] = "5000"
+    error = _error(raw)
+    assert error.element == "floor 1 / door 101"
+    assert error.problem == "at_mm: a number was expected, not the string '5000'"
