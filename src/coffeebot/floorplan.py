@@ -377,6 +377,16 @@ class FloorPlan(_Model):
 
 # --- loading and validation -----------------------------------------------------------------
 
+ANGLE_ZONE_CLEARANCE_MM = 400.0
+"""Plain wall an angle zone needs beyond each end, on one side at least: the side sensors are
+277 mm apart and their cones spread ~200 mm at 850 mm."""
+
+ELEVATOR_TOLERANCE_MM = 200.0
+"""How far apart the elevator doors of two floors may be in the building frame: one car."""
+
+ANCHOR_MARGIN_MM = 10_000.0
+"""How far outside its floor's hallway and rooms an anchor may be: beyond, a survey typo."""
+
 
 def load_floorplan(path: str | Path) -> FloorPlan:
     """Read and validate a floor plan TOML file; every problem raises :class:`FloorPlanError`."""
@@ -484,11 +494,14 @@ def _check_consistency(plan: FloorPlan, path: str | Path) -> None:
                 raise FloorPlanError(
                     path, f"{where} / angle zone {zone.id}", "lies outside the hallway"
                 )
+            _check_angle_zone_clear(floor, zone, path)
+        _check_anchors_near(floor, path)
         elevators = [d for d in floor.doors if d.kind == "elevator"]
         if len(elevators) > 1:
             raise FloorPlanError(path, f"{where} / door {elevators[1].id}", "second elevator door")
         if len(plan.floors) > 1 and not elevators:
             raise FloorPlanError(path, where, "no elevator door in a building of several floors")
+    _check_elevator_aligned(plan, path)
     tea_rooms = [(f, d) for f in plan.floors for d in f.doors if d.kind == "tea_room"]
     if len(tea_rooms) != 1:
         raise FloorPlanError(
@@ -498,3 +511,79 @@ def _check_consistency(plan: FloorPlan, path: str | Path) -> None:
     for room in rooms:
         if rooms.count(room) > 1:
             raise FloorPlanError(path, f"room {room}", "has more than one door")
+
+
+def _check_angle_zone_clear(floor: Floor, zone: AngleZone, path: str | Path) -> None:
+    """An angle zone needs flat wall on one side at least: with doors or openings on both,
+    the side sensors have no wall to measure the heading against."""
+    lo = zone.from_mm - ANGLE_ZONE_CLEARANCE_MM
+    hi = zone.to_mm + ANGLE_ZONE_CLEARANCE_MM
+    in_the_way = [
+        next((f for f in floor.features(side) if f.span[1] >= lo and f.span[0] <= hi), None)
+        for side in ("left", "right")
+    ]
+    left, right = in_the_way
+    if left is not None and right is not None:
+        raise FloorPlanError(
+            path,
+            f"floor {floor.level} / angle zone {zone.id}",
+            f"from_mm, to_mm: lies over {left.id} on the left and {right.id} on the right "
+            f"(one side needs plain wall {ANGLE_ZONE_CLEARANCE_MM:.0f} mm beyond each end)",
+        )
+
+
+def _check_anchors_near(floor: Floor, path: str | Path) -> None:
+    """An anchor far outside the floor is a mistyped figure: the robot would trust fixes
+    computed from a position the anchor does not have."""
+    ends = floor.segment_array[:, :4]
+    xs, ys = ends[:, 0::2], ends[:, 1::2]
+    for anchor in floor.anchors:
+        for field, value, coords in (("x_mm", anchor.x_mm, xs), ("y_mm", anchor.y_mm, ys)):
+            lo, hi = float(coords.min()), float(coords.max())
+            outside = max(lo - value, value - hi)
+            if outside > ANCHOR_MARGIN_MM:
+                raise FloorPlanError(
+                    path,
+                    f"floor {floor.level} / anchor {anchor.id}",
+                    f"{field}: {value:.0f} lies {outside:.0f} mm outside the floor's hallway "
+                    f"and rooms ({lo:.0f}..{hi:.0f} mm; at most {ANCHOR_MARGIN_MM:.0f} allowed)",
+                )
+
+
+def _elevator_front(floor: Floor, door: Door) -> tuple[np.ndarray, np.ndarray]:
+    """Where the car's door stands (the leaf's centre) in the building frame, and the unit
+    direction from there into the car."""
+    sign = 1.0 if door.side == "left" else -1.0
+    front = sign * (floor.hallway.width_mm / 2 + door.recess_mm)
+    centre = np.array(floor.from_hallway(door.at_mm, front))
+    inward = np.array(floor.from_hallway(door.at_mm, front + sign)) - centre
+    return centre, inward / np.linalg.norm(inward)
+
+
+def _check_elevator_aligned(plan: FloorPlan, path: str | Path) -> None:
+    """One car serves every floor: its door must stand at the same place, facing the same
+    way, on each (the robot drives into the car on one floor and out of it on another)."""
+    stops = [(f, f.elevator) for f in plan.floors if f.elevator is not None]
+    if len(stops) < 2:
+        return
+    first_floor, first = stops[0]
+    first_centre, first_inward = _elevator_front(first_floor, first)
+    for floor, door in stops[1:]:
+        centre, inward = _elevator_front(floor, door)
+        where = f"floor {floor.level} / door {door.id}"
+        if float(inward @ first_inward) < math.cos(math.radians(45)):
+            raise FloorPlanError(
+                path,
+                where,
+                f"side: the elevator opens on the {door.side} side, facing another way than "
+                f"{first.id} on floor {first_floor.level} ({first.side} side): not one car",
+            )
+        offset = float(np.linalg.norm(centre - first_centre))
+        if offset > ELEVATOR_TOLERANCE_MM:
+            raise FloorPlanError(
+                path,
+                where,
+                f"at_mm: the elevator door is {offset:.0f} mm from {first.id} on floor "
+                f"{first_floor.level} in the building frame (at most "
+                f"{ELEVATOR_TOLERANCE_MM:.0f}): not one car",
+            )

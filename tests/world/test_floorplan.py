@@ -221,3 +221,68 @@ def test_a_number_written_as_a_string_is_refused(
     error = _error(raw)
     assert error.element == "floor 1 / door 101"
     assert error.problem == "at_mm: a number was expected, not the string '5000'"
+
+
+def test_an_angle_zone_over_doors_on_both_sides_is_refused(
+    plan_dict: Callable[..., dict[str, Any]],
+) -> None:
+    """Door 101 (right, 4550..5450) and the tea room (left, 7550..8450) both lie in it."""
+    raw = plan_dict()
+    raw["floors"][0]["angle_zones"] = [{"id": "Z1", "from_mm": 5000, "to_mm": 7800}]
+    error = _error(raw)
+    assert error.element == "floor 1 / angle zone Z1"
+    assert error.problem.startswith("from_mm, to_mm: lies over Tea on the left and 101 on the")
+
+
+def test_an_anchor_far_outside_the_building_is_refused(
+    plan_dict: Callable[..., dict[str, Any]],
+) -> None:
+    """A digit too many: 50 m along a 10 m hallway."""
+    raw = plan_dict()
+    raw["floors"][0]["anchors"][2]["x_mm"] = 50000
+    error = _error(raw)
+    assert error.element == "floor 1 / anchor 0A03"
+    assert error.problem.startswith("x_mm: 50000 lies 40000 mm outside the floor's hallway")
+
+
+def _two_floors(plan_dict: Callable[..., dict[str, Any]]) -> dict[str, Any]:
+    """The tiny plan with an elevator on the left at s = 2000 mm, and a second floor above."""
+    raw = plan_dict()
+    first = raw["floors"][0]
+    elevator = {"id": "E", "room": "elevator", "kind": "elevator", "side": "left", "at_mm": 2000}
+    first["doors"].append(elevator)
+    second = {"level": 2, "hallway": dict(first["hallway"]), "doors": [dict(elevator)]}
+    raw["floors"].append(second)
+    return raw
+
+
+def test_two_floors_with_one_elevator_load(plan_dict: Callable[..., dict[str, Any]]) -> None:
+    plan = parse_floorplan(_two_floors(plan_dict))
+    assert [f.elevator.id for f in plan.floors if f.elevator is not None] == ["E", "E"]
+
+
+@pytest.mark.parametrize(
+    ("change", "problem"),
+    [
+        ({"at_mm": 2300}, "at_mm: the elevator door is 300 mm from E on floor 1"),
+        ({"side": "right"}, "side: the elevator opens on the right side"),
+    ],
+)
+def test_an_elevator_car_misplaced_between_floors_is_refused(
+    plan_dict: Callable[..., dict[str, Any]], change: dict[str, Any], problem: str
+) -> None:
+    raw = _two_floors(plan_dict)
+    raw["floors"][1]["doors"][0].update(change)
+    error = _error(raw)
+    assert error.element == "floor 2 / door E"
+    assert error.problem.startswith(problem)
+
+
+def test_an_elevator_on_a_hallway_surveyed_the_other_way_is_the_same_car(
+    plan_dict: Callable[..., dict[str, Any]],
+) -> None:
+    """Floor 2's hallway runs from x 10000 to 0: the same door is on its right, 8000 mm in."""
+    raw = _two_floors(plan_dict)
+    raw["floors"][1]["hallway"].update(start=[10000, 0], end=[0, 0])
+    raw["floors"][1]["doors"][0].update(side="right", at_mm=8000)
+    assert parse_floorplan(raw).floor(2).elevator is not None
