@@ -587,3 +587,79 @@ def _check_elevator_aligned(plan: FloorPlan, path: str | Path) -> None:
                 f"{first_floor.level} in the building frame (at most "
                 f"{ELEVATOR_TOLERANCE_MM:.0f}): not one car",
             )
+
+
+# --- warnings: what a valid plan leaves the robot to do poorly ---------------------------------
+
+MIN_ANCHORS = 3
+"""Anchors in range a UWB fix needs: the tag reports no position with fewer."""
+
+COVERAGE_STEP_MM = 100.0
+"""Spacing of the points along a hallway where anchor coverage is counted."""
+
+
+class PlanWarning(NamedTuple):
+    """Something a plan may contain but the robot will handle poorly, as a check reports it."""
+
+    element: str
+    problem: str
+
+    def describe(self, path: str | Path) -> str:
+        return f"{path}: {self.element}: {self.problem}"
+
+
+def plan_warnings(
+    plan: FloorPlan, *, uwb_range_mm: float, min_recess_mm: float
+) -> list[PlanWarning]:
+    """The plan's weak spots for a robot whose UWB reaches ``uwb_range_mm`` and whose door
+    detector sees recesses from ``min_recess_mm``: the loader knows neither, so the plan's
+    check asks for these."""
+    warnings: list[PlanWarning] = []
+    for floor in plan.floors:
+        warnings += _uwb_coverage_gaps(floor, uwb_range_mm)
+        warnings += _unseen_doors(floor, min_recess_mm)
+    return warnings
+
+
+def _uwb_coverage_gaps(floor: Floor, uwb_range_mm: float) -> list[PlanWarning]:
+    """Stretches of the hallway's centre line with fewer than three anchors in range: no UWB
+    fix there. The tag is taken at floor height, so an anchor's whole height counts."""
+    length = floor.hallway.length_mm
+    along = np.linspace(0.0, length, math.ceil(length / COVERAGE_STEP_MM) + 1)
+    points = np.array([floor.from_hallway(float(s), 0.0) for s in along])
+    anchors = np.array([(a.x_mm, a.y_mm, a.z_mm) for a in floor.anchors], dtype=float)
+    anchors = anchors.reshape(-1, 3)
+    distances = np.hypot(
+        np.hypot(points[:, :1] - anchors[:, 0], points[:, 1:] - anchors[:, 1]), anchors[:, 2]
+    )
+    in_range = (distances <= uwb_range_mm).sum(axis=1)
+    warnings = []
+    short = in_range < MIN_ANCHORS
+    for is_short, run in itertools.groupby(range(len(along)), key=lambda i: bool(short[i])):
+        if not is_short:
+            continue
+        indices = list(run)
+        fewest = int(in_range[indices].min())
+        warnings.append(
+            PlanWarning(
+                f"floor {floor.level} / hallway",
+                f"{along[indices[0]]:.0f}..{along[indices[-1]]:.0f} mm along it has "
+                f"{fewest} UWB anchor{'' if fewest == 1 else 's'} within {uwb_range_mm:.0f} mm, "
+                f"a fix needs {MIN_ANCHORS}: the robot relies on odometry, walls and doors there",
+            )
+        )
+    return warnings
+
+
+def _unseen_doors(floor: Floor, min_recess_mm: float) -> list[PlanWarning]:
+    """Closed doors too shallow for the door detector (an open one shows the room behind)."""
+    return [
+        PlanWarning(
+            f"floor {floor.level} / door {door.id}",
+            f"recess_mm: {door.recess_mm:.0f} mm is shallower than the door detector sees "
+            f"({min_recess_mm:.0f} mm): the robot will not see this door and relies on UWB "
+            "and odometry there",
+        )
+        for door in sorted(floor.doors, key=lambda d: d.at_mm)
+        if not door.open and door.recess_mm < min_recess_mm
+    ]

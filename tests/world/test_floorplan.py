@@ -9,7 +9,15 @@ from typing import Any
 
 import pytest
 
-from coffeebot.floorplan import FloorPlan, FloorPlanError, load_floorplan, parse_floorplan
+from coffeebot.cli import main
+from coffeebot.floorplan import (
+    FloorPlan,
+    FloorPlanError,
+    PlanWarning,
+    load_floorplan,
+    parse_floorplan,
+    plan_warnings,
+)
 
 from .conftest import CS_BUILDING, EXAMPLE
 
@@ -286,3 +294,49 @@ def test_an_elevator_on_a_hallway_surveyed_the_other_way_is_the_same_car(
     raw["floors"][1]["hallway"].update(start=[10000, 0], end=[0, 0])
     raw["floors"][1]["doors"][0].update(side="right", at_mm=8000)
     assert parse_floorplan(raw).floor(2).elevator is not None
+
+
+# --- warnings: what a valid plan leaves the robot to do poorly ------------------------------
+
+
+def test_a_stretch_with_fewer_than_three_anchors_in_range_is_a_warning(
+    plan_dict: Callable[..., dict[str, Any]],
+) -> None:
+    """Anchors at s 0, 5000 and 10000, 2.4 m up: with a 6 m range only s 4559..5441 mm has
+    all three in range (sampled every 100 mm)."""
+    plan = parse_floorplan(plan_dict())
+    assert plan_warnings(plan, uwb_range_mm=25_000, min_recess_mm=100) == []
+    warnings = plan_warnings(plan, uwb_range_mm=6_000, min_recess_mm=100)
+    assert [w.element for w in warnings] == ["floor 1 / hallway"] * 2
+    assert warnings[0].problem.startswith("0..4500 mm along it has 2 UWB anchors within 6000 mm")
+    assert warnings[1].problem.startswith("5500..10000 mm along it has 2 UWB anchors")
+
+
+def test_a_door_too_shallow_for_the_detector_is_a_warning(
+    plan_dict: Callable[..., dict[str, Any]],
+) -> None:
+    raw = plan_dict()
+    raw["floors"][0]["doors"][0]["recess_mm"] = 60
+    warnings = plan_warnings(parse_floorplan(raw), uwb_range_mm=25_000, min_recess_mm=100)
+    assert warnings == [
+        PlanWarning(
+            "floor 1 / door 101",
+            "recess_mm: 60 mm is shallower than the door detector sees (100 mm): the robot "
+            "will not see this door and relies on UWB and odometry there",
+        )
+    ]
+
+
+def test_the_plan_check_prints_the_warnings_without_a_recording(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The board's door detector (jump_mm 80) needs about 100 mm; the example's 102 has 80."""
+    assert main(["floorplan", "check", "--floorplan", str(EXAMPLE)]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [
+        f"warning: {EXAMPLE}: floor 1 / door 102: recess_mm: 80 mm is shallower than the door "
+        "detector sees (100 mm): the robot will not see this door and relies on UWB and "
+        "odometry there"
+    ]
+    assert main(["floorplan", "check", "--floorplan", str(CS_BUILDING)]) == 0
+    assert capsys.readouterr().err == ""
