@@ -27,14 +27,16 @@ from coffeebot.clock import MonotonicClock, ScaledClock
 from coffeebot.config import RobotConfig, load_robot_config
 from coffeebot.daemon import Daemon
 from coffeebot.errors import CoffeebotError, ConfigError
-from coffeebot.floorplan import FloorPlan, load_floorplan
+from coffeebot.floorplan import FloorPlan, load_floorplan, plan_warnings
 from coffeebot.floorplan_svg import add_render_arguments, render_command
+from coffeebot.hardware.dwm1001 import ANCHOR_RANGE_MM
 from coffeebot.hardware.i2c import kernel_bus_hz, open_i2c_bus
 from coffeebot.hardware.selfcheck import CheckResult, run_checks
 from coffeebot.install import install_service
 from coffeebot.logs import setup_logging
 from coffeebot.messages import ALL_TOPICS
 from coffeebot.modules.base import Module
+from coffeebot.perception.door import min_visible_recess_mm
 from coffeebot.runtime.assemble import Runtime
 from coffeebot.runtime.robot import build_robot
 from coffeebot.runtime.service import StopAfter, recorder, serve
@@ -146,15 +148,23 @@ def build_parser() -> argparse.ArgumentParser:
     floorplan_sub = floorplan.add_subparsers(dest="floorplan_command", required=True)
     add_render_arguments(floorplan_sub.add_parser("render", help="draw a floor plan as SVG"))
     survey = floorplan_sub.add_parser(
-        "check", help="compare a recorded pass with the floor plan; list what disagrees"
+        "check",
+        help="warn of what the plan leaves the robot to do poorly; with --recording, compare "
+        "a recorded pass with the plan and list what disagrees",
     )
-    survey.add_argument("--recording", type=Path, required=True, metavar="PASS.mcap")
+    survey.add_argument("--recording", type=Path, metavar="PASS.mcap")
     survey.add_argument("--floorplan", type=Path, default=DEFAULT_FLOORPLAN, help="floor plan")
     survey.add_argument("--board", type=Path, default=DEFAULT_BOARD, help="robot description")
     survey.add_argument(
         "--threshold-mm", type=_positive, default=50.0, help="report larger errors (default 50)"
     )
     survey.add_argument("--json", action="store_true", help="print the list as JSON")
+    survey.add_argument(
+        "--uwb-range-mm",
+        type=_positive,
+        default=ANCHOR_RANGE_MM,
+        help=f"anchors reach this far (default {ANCHOR_RANGE_MM:.0f})",
+    )
     replay = sub.add_parser("replay", help="republish a recording onto a board")
     _add_common(replay)
     replay.add_argument("file", type=Path, help="an MCAP recording")
@@ -338,10 +348,23 @@ async def _replay(config: RobotConfig, args: argparse.Namespace) -> None:
 
 
 def _survey_check(args: argparse.Namespace) -> int:
-    """``coffeebot floorplan check``: exit 0 if the plan agrees, 1 if something does not."""
+    """``coffeebot floorplan check``: exit 0 if the plan agrees, 1 if something does not.
+
+    The plan's warnings (stretches without a UWB fix, doors too shallow to detect) go to
+    stderr and do not fail the check: the robot copes, only less well.
+    """
     try:
         config = load_robot_config(args.board)
         plan = load_floorplan(args.floorplan)
+        warnings = plan_warnings(
+            plan,
+            uwb_range_mm=args.uwb_range_mm,
+            min_recess_mm=min_visible_recess_mm(config.door),
+        )
+        for warning in warnings:
+            print(f"warning: {warning.describe(args.floorplan)}", file=sys.stderr)
+        if args.recording is None:
+            return 0
         check = check_recording(args.recording, plan, config.tof.sensors)
     except (ConfigError, OSError, RecordingError) as exc:
         print(f"coffeebot: {exc}", file=sys.stderr)

@@ -21,7 +21,16 @@ from pathlib import Path
 from typing import Annotated, Any, Literal, NamedTuple
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    Strict,
+    StrictFloat,
+    StrictInt,
+    ValidationError,
+    model_validator,
+)
 
 from coffeebot.config import read_toml
 from coffeebot.errors import ConfigError
@@ -30,8 +39,10 @@ Side = Literal["left", "right"]
 
 PLAN_MM = 1_000_000.0
 """Every coordinate lies within a kilometre of the origin: a survey typo, not a building."""
-Coordinate = Annotated[float, Field(ge=-PLAN_MM, le=PLAN_MM)]
-Size = Annotated[float, Field(gt=0, le=100_000)]
+# Numbers are strict (an integer still passes for a float): pydantic would read a quoted
+# "42000" as 42000, and a survey with quoted figures is one nobody has checked.
+Coordinate = Annotated[float, Strict(), Field(ge=-PLAN_MM, le=PLAN_MM)]
+Size = Annotated[float, Strict(), Field(gt=0, le=100_000)]
 """A width, depth or height: positive and under 100 m."""
 
 
@@ -82,7 +93,7 @@ class Door(_Model):
     side: Side
     at_mm: Coordinate = Field(description="distance of the door centre along the hallway axis")
     width_mm: Size = 900.0
-    recess_mm: float = Field(100.0, ge=0, le=10_000)
+    recess_mm: StrictFloat = Field(100.0, ge=0, le=10_000)
     height_mm: Size = 2100.0
     kind: Literal["office", "elevator", "tea_room", "other"] = "office"
     open: bool = False
@@ -130,7 +141,7 @@ class ParkingSpot(_Model):
 
     x_mm: Coordinate
     y_mm: Coordinate
-    heading_deg: float = Field(0.0, ge=-360, le=360)
+    heading_deg: StrictFloat = Field(0.0, ge=-360, le=360)
 
 
 class AngleZone(_Model):
@@ -157,7 +168,7 @@ class Anchor(_Model):
     )
     x_mm: Coordinate
     y_mm: Coordinate
-    z_mm: float = Field(2400.0, ge=-10_000, le=100_000)
+    z_mm: StrictFloat = Field(2400.0, ge=-10_000, le=100_000)
 
 
 class WallSegment(NamedTuple):
@@ -187,7 +198,7 @@ def segment_distances(
 
 
 class Floor(_Model):
-    level: int = Field(ge=-100, le=1000)
+    level: StrictInt = Field(ge=-100, le=1000)
     name: str = ""
     wall_height_mm: Size = 2700.0
     hallway: Hallway
@@ -366,6 +377,16 @@ class FloorPlan(_Model):
 
 # --- loading and validation -----------------------------------------------------------------
 
+ANGLE_ZONE_CLEARANCE_MM = 400.0
+"""Plain wall an angle zone needs beyond each end, on one side at least: the side sensors are
+277 mm apart and their cones spread ~200 mm at 850 mm."""
+
+ELEVATOR_TOLERANCE_MM = 200.0
+"""How far apart the elevator doors of two floors may be in the building frame: one car."""
+
+ANCHOR_MARGIN_MM = 10_000.0
+"""How far outside its floor's hallway and rooms an anchor may be: beyond, a survey typo."""
+
 
 def load_floorplan(path: str | Path) -> FloorPlan:
     """Read and validate a floor plan TOML file; every problem raises :class:`FloorPlanError`."""
@@ -381,7 +402,10 @@ def parse_floorplan(raw: dict[str, Any], path: str | Path = "<floor plan>") -> F
     except ValidationError as exc:
         error = exc.errors()[0]
         element, field = _describe_location(raw, error["loc"])
-        problem = f"{field}: {error['msg']}" if field else error["msg"]
+        message = error["msg"]
+        if error["type"] in ("float_type", "int_type") and isinstance(error["input"], str):
+            message = f"a number was expected, not the string {error['input']!r}"
+        problem = f"{field}: {message}" if field else message
         raise FloorPlanError(path, element, problem) from None
     _check_consistency(plan, path)
     return plan
@@ -470,11 +494,14 @@ def _check_consistency(plan: FloorPlan, path: str | Path) -> None:
                 raise FloorPlanError(
                     path, f"{where} / angle zone {zone.id}", "lies outside the hallway"
                 )
+            _check_angle_zone_clear(floor, zone, path)
+        _check_anchors_near(floor, path)
         elevators = [d for d in floor.doors if d.kind == "elevator"]
         if len(elevators) > 1:
             raise FloorPlanError(path, f"{where} / door {elevators[1].id}", "second elevator door")
         if len(plan.floors) > 1 and not elevators:
             raise FloorPlanError(path, where, "no elevator door in a building of several floors")
+    _check_elevator_aligned(plan, path)
     tea_rooms = [(f, d) for f in plan.floors for d in f.doors if d.kind == "tea_room"]
     if len(tea_rooms) != 1:
         raise FloorPlanError(
@@ -484,3 +511,155 @@ def _check_consistency(plan: FloorPlan, path: str | Path) -> None:
     for room in rooms:
         if rooms.count(room) > 1:
             raise FloorPlanError(path, f"room {room}", "has more than one door")
+
+
+def _check_angle_zone_clear(floor: Floor, zone: AngleZone, path: str | Path) -> None:
+    """An angle zone needs flat wall on one side at least: with doors or openings on both,
+    the side sensors have no wall to measure the heading against."""
+    lo = zone.from_mm - ANGLE_ZONE_CLEARANCE_MM
+    hi = zone.to_mm + ANGLE_ZONE_CLEARANCE_MM
+    in_the_way = [
+        next((f for f in floor.features(side) if f.span[1] >= lo and f.span[0] <= hi), None)
+        for side in ("left", "right")
+    ]
+    left, right = in_the_way
+    if left is not None and right is not None:
+        raise FloorPlanError(
+            path,
+            f"floor {floor.level} / angle zone {zone.id}",
+            f"from_mm, to_mm: lies over {left.id} on the left and {right.id} on the right "
+            f"(one side needs plain wall {ANGLE_ZONE_CLEARANCE_MM:.0f} mm beyond each end)",
+        )
+
+
+def _check_anchors_near(floor: Floor, path: str | Path) -> None:
+    """An anchor far outside the floor is a mistyped figure: the robot would trust fixes
+    computed from a position the anchor does not have."""
+    ends = floor.segment_array[:, :4]
+    xs, ys = ends[:, 0::2], ends[:, 1::2]
+    for anchor in floor.anchors:
+        for field, value, coords in (("x_mm", anchor.x_mm, xs), ("y_mm", anchor.y_mm, ys)):
+            lo, hi = float(coords.min()), float(coords.max())
+            outside = max(lo - value, value - hi)
+            if outside > ANCHOR_MARGIN_MM:
+                raise FloorPlanError(
+                    path,
+                    f"floor {floor.level} / anchor {anchor.id}",
+                    f"{field}: {value:.0f} lies {outside:.0f} mm outside the floor's hallway "
+                    f"and rooms ({lo:.0f}..{hi:.0f} mm; at most {ANCHOR_MARGIN_MM:.0f} allowed)",
+                )
+
+
+def _elevator_front(floor: Floor, door: Door) -> tuple[np.ndarray, np.ndarray]:
+    """Where the car's door stands (the leaf's centre) in the building frame, and the unit
+    direction from there into the car."""
+    sign = 1.0 if door.side == "left" else -1.0
+    front = sign * (floor.hallway.width_mm / 2 + door.recess_mm)
+    centre = np.array(floor.from_hallway(door.at_mm, front))
+    inward = np.array(floor.from_hallway(door.at_mm, front + sign)) - centre
+    return centre, inward / np.linalg.norm(inward)
+
+
+def _check_elevator_aligned(plan: FloorPlan, path: str | Path) -> None:
+    """One car serves every floor: its door must stand at the same place, facing the same
+    way, on each (the robot drives into the car on one floor and out of it on another)."""
+    stops = [(f, f.elevator) for f in plan.floors if f.elevator is not None]
+    if len(stops) < 2:
+        return
+    first_floor, first = stops[0]
+    first_centre, first_inward = _elevator_front(first_floor, first)
+    for floor, door in stops[1:]:
+        centre, inward = _elevator_front(floor, door)
+        where = f"floor {floor.level} / door {door.id}"
+        if float(inward @ first_inward) < math.cos(math.radians(45)):
+            raise FloorPlanError(
+                path,
+                where,
+                f"side: the elevator opens on the {door.side} side, facing another way than "
+                f"{first.id} on floor {first_floor.level} ({first.side} side): not one car",
+            )
+        offset = float(np.linalg.norm(centre - first_centre))
+        if offset > ELEVATOR_TOLERANCE_MM:
+            raise FloorPlanError(
+                path,
+                where,
+                f"at_mm: the elevator door is {offset:.0f} mm from {first.id} on floor "
+                f"{first_floor.level} in the building frame (at most "
+                f"{ELEVATOR_TOLERANCE_MM:.0f}): not one car",
+            )
+
+
+# --- warnings: what a valid plan leaves the robot to do poorly ---------------------------------
+
+MIN_ANCHORS = 3
+"""Anchors in range a UWB fix needs: the tag reports no position with fewer."""
+
+COVERAGE_STEP_MM = 100.0
+"""Spacing of the points along a hallway where anchor coverage is counted."""
+
+
+class PlanWarning(NamedTuple):
+    """Something a plan may contain but the robot will handle poorly, as a check reports it."""
+
+    element: str
+    problem: str
+
+    def describe(self, path: str | Path) -> str:
+        return f"{path}: {self.element}: {self.problem}"
+
+
+def plan_warnings(
+    plan: FloorPlan, *, uwb_range_mm: float, min_recess_mm: float
+) -> list[PlanWarning]:
+    """The plan's weak spots for a robot whose UWB reaches ``uwb_range_mm`` and whose door
+    detector sees recesses from ``min_recess_mm``: the loader knows neither, so the plan's
+    check asks for these."""
+    warnings: list[PlanWarning] = []
+    for floor in plan.floors:
+        warnings += _uwb_coverage_gaps(floor, uwb_range_mm)
+        warnings += _unseen_doors(floor, min_recess_mm)
+    return warnings
+
+
+def _uwb_coverage_gaps(floor: Floor, uwb_range_mm: float) -> list[PlanWarning]:
+    """Stretches of the hallway's centre line with fewer than three anchors in range: no UWB
+    fix there. The tag is taken at floor height, so an anchor's whole height counts."""
+    length = floor.hallway.length_mm
+    along = np.linspace(0.0, length, math.ceil(length / COVERAGE_STEP_MM) + 1)
+    points = np.array([floor.from_hallway(float(s), 0.0) for s in along])
+    anchors = np.array([(a.x_mm, a.y_mm, a.z_mm) for a in floor.anchors], dtype=float)
+    anchors = anchors.reshape(-1, 3)
+    distances = np.hypot(
+        np.hypot(points[:, :1] - anchors[:, 0], points[:, 1:] - anchors[:, 1]), anchors[:, 2]
+    )
+    in_range = (distances <= uwb_range_mm).sum(axis=1)
+    warnings = []
+    short = in_range < MIN_ANCHORS
+    for is_short, run in itertools.groupby(range(len(along)), key=lambda i: bool(short[i])):
+        if not is_short:
+            continue
+        indices = list(run)
+        fewest = int(in_range[indices].min())
+        warnings.append(
+            PlanWarning(
+                f"floor {floor.level} / hallway",
+                f"{along[indices[0]]:.0f}..{along[indices[-1]]:.0f} mm along it has "
+                f"{fewest} UWB anchor{'' if fewest == 1 else 's'} within {uwb_range_mm:.0f} mm, "
+                f"a fix needs {MIN_ANCHORS}: the robot relies on odometry, walls and doors there",
+            )
+        )
+    return warnings
+
+
+def _unseen_doors(floor: Floor, min_recess_mm: float) -> list[PlanWarning]:
+    """Closed doors too shallow for the door detector (an open one shows the room behind)."""
+    return [
+        PlanWarning(
+            f"floor {floor.level} / door {door.id}",
+            f"recess_mm: {door.recess_mm:.0f} mm is shallower than the door detector sees "
+            f"({min_recess_mm:.0f} mm): the robot will not see this door and relies on UWB "
+            "and odometry there",
+        )
+        for door in sorted(floor.doors, key=lambda d: d.at_mm)
+        if not door.open and door.recess_mm < min_recess_mm
+    ]

@@ -9,7 +9,15 @@ from typing import Any
 
 import pytest
 
-from coffeebot.floorplan import FloorPlan, FloorPlanError, load_floorplan, parse_floorplan
+from coffeebot.cli import main
+from coffeebot.floorplan import (
+    FloorPlan,
+    FloorPlanError,
+    PlanWarning,
+    load_floorplan,
+    parse_floorplan,
+    plan_warnings,
+)
 
 from .conftest import CS_BUILDING, EXAMPLE
 
@@ -210,3 +218,125 @@ def test_shipped_file_path_is_in_errors(tmp_path: Path) -> None:
     copy.write_text(text)
     with pytest.raises(FloorPlanError, match=r"cs\.toml: floor 2 / door 203: duplicate id"):
         load_floorplan(copy)
+
+
+def test_a_number_written_as_a_string_is_refused(
+    plan_dict: Callable[..., dict[str, Any]],
+) -> None:
+    """Lax pydantic would read "5000" as 5000; integers still pass for millimetres."""
+    raw = plan_dict()
+    raw["floors"][0]["doors"][0]["at_mm"] = "5000"
+    error = _error(raw)
+    assert error.element == "floor 1 / door 101"
+    assert error.problem == "at_mm: a number was expected, not the string '5000'"
+
+
+def test_an_angle_zone_over_doors_on_both_sides_is_refused(
+    plan_dict: Callable[..., dict[str, Any]],
+) -> None:
+    """Door 101 (right, 4550..5450) and the tea room (left, 7550..8450) both lie in it."""
+    raw = plan_dict()
+    raw["floors"][0]["angle_zones"] = [{"id": "Z1", "from_mm": 5000, "to_mm": 7800}]
+    error = _error(raw)
+    assert error.element == "floor 1 / angle zone Z1"
+    assert error.problem.startswith("from_mm, to_mm: lies over Tea on the left and 101 on the")
+
+
+def test_an_anchor_far_outside_the_building_is_refused(
+    plan_dict: Callable[..., dict[str, Any]],
+) -> None:
+    """A digit too many: 50 m along a 10 m hallway."""
+    raw = plan_dict()
+    raw["floors"][0]["anchors"][2]["x_mm"] = 50000
+    error = _error(raw)
+    assert error.element == "floor 1 / anchor 0A03"
+    assert error.problem.startswith("x_mm: 50000 lies 40000 mm outside the floor's hallway")
+
+
+def _two_floors(plan_dict: Callable[..., dict[str, Any]]) -> dict[str, Any]:
+    """The tiny plan with an elevator on the left at s = 2000 mm, and a second floor above."""
+    raw = plan_dict()
+    first = raw["floors"][0]
+    elevator = {"id": "E", "room": "elevator", "kind": "elevator", "side": "left", "at_mm": 2000}
+    first["doors"].append(elevator)
+    second = {"level": 2, "hallway": dict(first["hallway"]), "doors": [dict(elevator)]}
+    raw["floors"].append(second)
+    return raw
+
+
+def test_two_floors_with_one_elevator_load(plan_dict: Callable[..., dict[str, Any]]) -> None:
+    plan = parse_floorplan(_two_floors(plan_dict))
+    assert [f.elevator.id for f in plan.floors if f.elevator is not None] == ["E", "E"]
+
+
+@pytest.mark.parametrize(
+    ("change", "problem"),
+    [
+        ({"at_mm": 2300}, "at_mm: the elevator door is 300 mm from E on floor 1"),
+        ({"side": "right"}, "side: the elevator opens on the right side"),
+    ],
+)
+def test_an_elevator_car_misplaced_between_floors_is_refused(
+    plan_dict: Callable[..., dict[str, Any]], change: dict[str, Any], problem: str
+) -> None:
+    raw = _two_floors(plan_dict)
+    raw["floors"][1]["doors"][0].update(change)
+    error = _error(raw)
+    assert error.element == "floor 2 / door E"
+    assert error.problem.startswith(problem)
+
+
+def test_an_elevator_on_a_hallway_surveyed_the_other_way_is_the_same_car(
+    plan_dict: Callable[..., dict[str, Any]],
+) -> None:
+    """Floor 2's hallway runs from x 10000 to 0: the same door is on its right, 8000 mm in."""
+    raw = _two_floors(plan_dict)
+    raw["floors"][1]["hallway"].update(start=[10000, 0], end=[0, 0])
+    raw["floors"][1]["doors"][0].update(side="right", at_mm=8000)
+    assert parse_floorplan(raw).floor(2).elevator is not None
+
+
+# --- warnings: what a valid plan leaves the robot to do poorly ------------------------------
+
+
+def test_a_stretch_with_fewer_than_three_anchors_in_range_is_a_warning(
+    plan_dict: Callable[..., dict[str, Any]],
+) -> None:
+    """Anchors at s 0, 5000 and 10000, 2.4 m up: with a 6 m range only s 4559..5441 mm has
+    all three in range (sampled every 100 mm)."""
+    plan = parse_floorplan(plan_dict())
+    assert plan_warnings(plan, uwb_range_mm=25_000, min_recess_mm=100) == []
+    warnings = plan_warnings(plan, uwb_range_mm=6_000, min_recess_mm=100)
+    assert [w.element for w in warnings] == ["floor 1 / hallway"] * 2
+    assert warnings[0].problem.startswith("0..4500 mm along it has 2 UWB anchors within 6000 mm")
+    assert warnings[1].problem.startswith("5500..10000 mm along it has 2 UWB anchors")
+
+
+def test_a_door_too_shallow_for_the_detector_is_a_warning(
+    plan_dict: Callable[..., dict[str, Any]],
+) -> None:
+    raw = plan_dict()
+    raw["floors"][0]["doors"][0]["recess_mm"] = 60
+    warnings = plan_warnings(parse_floorplan(raw), uwb_range_mm=25_000, min_recess_mm=100)
+    assert warnings == [
+        PlanWarning(
+            "floor 1 / door 101",
+            "recess_mm: 60 mm is shallower than the door detector sees (100 mm): the robot "
+            "will not see this door and relies on UWB and odometry there",
+        )
+    ]
+
+
+def test_the_plan_check_prints_the_warnings_without_a_recording(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The board's door detector (jump_mm 80) needs about 100 mm; the example's 102 has 80."""
+    assert main(["floorplan", "check", "--floorplan", str(EXAMPLE)]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [
+        f"warning: {EXAMPLE}: floor 1 / door 102: recess_mm: 80 mm is shallower than the door "
+        "detector sees (100 mm): the robot will not see this door and relies on UWB and "
+        "odometry there"
+    ]
+    assert main(["floorplan", "check", "--floorplan", str(CS_BUILDING)]) == 0
+    assert capsys.readouterr().err == ""

@@ -33,6 +33,10 @@ PROMPT = b"dwm> "
 ENTER_SHELL = b"\r\r"  # two Enters within one second leave TLV mode
 TLV_UNKNOWN_COMMAND = b"\x40\x01\x01"  # what TLV mode answers to text
 
+ANCHOR_RANGE_MM = 25_000.0
+"""How far an anchor is taken to reach the tag along a hallway (line of sight): the simulator
+ranges anchors up to this, and a floor plan's check counts anchors within it."""
+
 
 @dataclass(frozen=True, slots=True)
 class LecReport:

@@ -47,6 +47,16 @@ from coffeebot.perception.geometry import TravelFrame, sensor_origin
 MIN_VISIBLE_MM = 200.0
 """The least of a door a side sensor is assumed to see, however far the wall."""
 
+RECESS_STEP_SHARE = 0.8
+"""How much of a recess the window's step reads at most: the cone's footprint blurs the edge
+into both halves. With ``jump_mm`` 80, recesses of 50-90 mm went undetected in a second
+building and 100-200 mm were seen."""
+
+
+def min_visible_recess_mm(cfg: DoorConfig) -> float:
+    """The shallowest door recess the detector finds: its blurred step must reach ``jump_mm``."""
+    return cfg.jump_mm / RECESS_STEP_SHARE
+
 
 def readings_per_door(
     cfg: DoorConfig, speed_mm_s: float, scan_rate_hz: float, visible_mm: float | None = None

@@ -21,6 +21,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from coffeebot.floorplan import Floor, FloorPlan, segment_distances
+from coffeebot.hardware.dwm1001 import ANCHOR_RANGE_MM
 from coffeebot.hardware.vl53l1x import FULL_ROI, SpadRoi
 from coffeebot.messages import AnchorRange, UwbFix
 from coffeebot.sim.world.elevator import SimElevator
@@ -54,7 +55,7 @@ class UwbModel(BaseModel):
 
     position_sigma_mm: float = Field(100.0, ge=0)
     range_sigma_mm: float = Field(50.0, ge=0)
-    max_anchor_range_mm: float = Field(25_000.0, gt=0)
+    max_anchor_range_mm: float = Field(ANCHOR_RANGE_MM, gt=0)
     max_anchors: int = Field(4, ge=3)
 
 
