@@ -232,6 +232,12 @@ class Floor(_Model):
         p = origin + s_mm * u + d_mm * n
         return float(p[0]), float(p[1])
 
+    def behind_door(self, door: Door, depth_mm: float) -> tuple[float, float]:
+        """The floor-frame point ``depth_mm`` behind the hallway's wall line, through the
+        middle of ``door`` (the recess's leaf at ``door.recess_mm``; inside the room beyond)."""
+        sign = 1.0 if door.side == "left" else -1.0
+        return self.from_hallway(door.at_mm, sign * (self.hallway.width_mm / 2 + depth_mm))
+
     # --- queries ---------------------------------------------------------------------------
 
     def features(self, side: Side | None = None) -> list[Door | Opening]:
@@ -553,10 +559,8 @@ def _check_anchors_near(floor: Floor, path: str | Path) -> None:
 def _elevator_front(floor: Floor, door: Door) -> tuple[np.ndarray, np.ndarray]:
     """Where the car's door stands (the leaf's centre) in the building frame, and the unit
     direction from there into the car."""
-    sign = 1.0 if door.side == "left" else -1.0
-    front = sign * (floor.hallway.width_mm / 2 + door.recess_mm)
-    centre = np.array(floor.from_hallway(door.at_mm, front))
-    inward = np.array(floor.from_hallway(door.at_mm, front + sign)) - centre
+    centre = np.array(floor.behind_door(door, door.recess_mm))
+    inward = np.array(floor.behind_door(door, door.recess_mm + 1.0)) - centre
     return centre, inward / np.linalg.norm(inward)
 
 

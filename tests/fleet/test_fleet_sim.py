@@ -28,7 +28,6 @@ from coffeebot.config import load_robot_config
 from coffeebot.fleet.mosquitto import mosquitto
 from coffeebot.floorplan import load_floorplan
 from coffeebot.messages import OrderStatus
-from coffeebot.navigation.route import RoutePlanner
 from coffeebot.runtime.fleet import FleetSim, build_fleet_sim, robot_ids, serve_fleet
 from coffeebot.scenario.spec import Staff
 from coffeebot.scenario.staff import StaffModule
@@ -58,6 +57,7 @@ class Sample:
     t_s: float
     poses: list[tuple[float, float, float, int]]
     """(x, y, heading in degrees, floor) per robot."""
+
 
 @dataclass
 class FleetRun:
@@ -143,11 +143,8 @@ async def test_every_order_is_delivered_without_a_contact(fleet_run: FleetRun) -
 
 @pytest.mark.asyncio(loop_scope="module")
 async def test_the_loading_spot_holds_one_robot_at_a_time(fleet_run: FleetRun) -> None:
-    planner = RoutePlanner(PLAN, BOARD.motion, BOARD.navigation, BOARD.geometry.width_mm)
     base = PLAN.tea_room
-    spot = planner.inside_point(
-        base.floor, base.door, base.door.recess_mm + BOARD.navigation.base_depth_mm
-    )
+    spot = base.floor.behind_door(base.door, base.door.recess_mm + BOARD.navigation.base_depth_mm)
     near = BOARD.geometry.width_mm / 2
 
     def at_spot(pose: tuple[float, float, float, int]) -> bool:

@@ -25,6 +25,7 @@ from coffeebot.perception.collision import CollisionMonitor
 from coffeebot.perception.walls import explainer
 from coffeebot.sim.world import World
 from coffeebot.sim.world.tof import as_range_reading, robot_setup
+from coffeebot.sim.world.world import WorldRobot
 
 ROOT = Path(__file__).resolve().parents[2]
 CONFIG: RobotConfig = load_robot_config(ROOT / "boards" / "coffeebot-v1.toml")
@@ -52,13 +53,14 @@ def estimate_at(floor: int, x: float, y: float, heading: float = 0.0) -> PoseEst
     )
 
 
-def true_pose(world: World) -> PoseEstimate:
-    body = world.robot.body.state
+def true_pose(robot: WorldRobot) -> PoseEstimate:
+    """The robot's ground truth as a pose estimate without uncertainty."""
+    body = robot.body.state
     return PoseEstimate(
-        x_mm=world.robot.pose.x_mm,
-        y_mm=world.robot.pose.y_mm,
-        heading_deg=world.robot.pose.heading_deg,
-        floor=world.robot.floor_level,
+        x_mm=robot.pose.x_mm,
+        y_mm=robot.pose.y_mm,
+        heading_deg=robot.pose.heading_deg,
+        floor=robot.floor_level,
         sigma_x_mm=0.0,
         sigma_y_mm=0.0,
         sigma_heading_deg=0.0,
@@ -91,7 +93,7 @@ def drive(
     while world.t_s < max_time_s:
         seq += 1
         scan = to_scan(world)
-        pose = true_pose(world)
+        pose = true_pose(world.robot)
         run.path.append((pose.x_mm, pose.y_mm, pose.heading_deg))
         module.costmap.update(
             scan, PLAN.floor(pose.floor), pose.x_mm, pose.y_mm, pose.heading_deg, world.t_s

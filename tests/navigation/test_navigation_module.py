@@ -91,7 +91,7 @@ async def rig():
     clock = ManualClock(0.0)
     board = Board(ALL_TOPICS, clock=clock)
     base = PLANNER.base
-    x, y = PLANNER.inside_point(PLAN.floor(2), base.door, 800)
+    x, y = PLAN.floor(2).behind_door(base.door, 800)
     board.publish(CURRENT_STATE, pose_at(2, x, y, 90.0))
     daemon = Daemon(board, [NavigationModule(CONFIG, PLAN)])
     statuses = board.subscribe(DELIVERY_STATUS)

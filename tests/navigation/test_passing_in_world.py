@@ -6,13 +6,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from helpers import CONFIG, DT, PLAN, SETUP
+from helpers import CONFIG, DT, PLAN, SETUP, true_pose
 
 from coffeebot.messages import (
     MotionState,
     MoveInstruction,
     OtherRobot,
-    PoseEstimate,
     RangeScan,
     SafetyState,
     Traffic,
@@ -36,22 +35,9 @@ class Meeting:
     contacts: int
 
 
-def pose_of(robot: WorldRobot) -> PoseEstimate:
-    return PoseEstimate(
-        x_mm=robot.pose.x_mm,
-        y_mm=robot.pose.y_mm,
-        heading_deg=robot.pose.heading_deg,
-        floor=robot.floor_level,
-        sigma_x_mm=0.0,
-        sigma_y_mm=0.0,
-        sigma_heading_deg=0.0,
-        speed_mm_s=robot.body.state.speed_mm_s,
-    )
-
-
 def seen_as_traffic(name: str, robot: WorldRobot) -> Traffic:
     """What the dispatcher would tell the other robot of this one."""
-    pose = pose_of(robot)
+    pose = true_pose(robot)
     other = OtherRobot(
         robot=name,
         floor=pose.floor,
@@ -107,7 +93,7 @@ def meet(traffic: bool, max_time_s: float) -> Meeting:
                 continue
             readings = [as_range_reading(k, r) for k, r in enumerate(robot.scan(SETUP))]
             scan = RangeScan(cycle_start_s=world.t_s, cycle_time_s=DT, readings=readings)
-            pose = pose_of(robot)
+            pose = true_pose(robot)
             module, ins = modules[i], instructions[i]
             module.costmap.update(scan, FLOOR, pose.x_mm, pose.y_mm, pose.heading_deg, world.t_s)
             explain = explainer(FLOOR, pose, CONFIG.motion.wall_margin_mm)

@@ -150,7 +150,7 @@ def test_lifecycle_cancel_before_leaving_needs_no_return() -> None:
 
 def test_a_route_is_drawn_as_one_leg_per_floor_from_where_the_robot_stands() -> None:
     base = PLANNER.base
-    start = PLANNER.inside_point(PLAN.floor(2), base.door, 500.0)
+    start = PLAN.floor(2).behind_door(base.door, 500.0)
     route = PLANNER.route(base.floor, base.door.at_mm, PLANNER.door_place("307"), base.door)
     first, second = route_legs(route, PLAN, 2, start)
     assert (first.floor, second.floor) == (2, 3)

@@ -42,7 +42,7 @@ class TravelTimes:
         base = self.planner.base
         floor = self.plan.floor(base.floor)
         depth = base.door.recess_mm + self.planner.nav.base_depth_mm
-        x, y = self.planner.inside_point(floor, base.door, depth)  # where it parks
+        x, y = floor.behind_door(base.door, depth)  # where it parks
         return self._along(base.floor, x, y, self.planner.door_place(room))
 
     def _along(self, floor: int, x_mm: float, y_mm: float, goal: Place) -> float:

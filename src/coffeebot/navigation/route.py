@@ -135,11 +135,6 @@ class RoutePlanner:
         ``door`` leaves the body's centre on the door's axis."""
         return door.at_mm - direction * self.pivot_mm
 
-    def inside_point(self, floor: Floor, door: Door, depth_mm: float) -> tuple[float, float]:
-        """A point ``depth_mm`` behind the wall line, through the middle of ``door``."""
-        sign = 1.0 if door.side == "left" else -1.0
-        return floor.from_hallway(door.at_mm, sign * (floor.hallway.width_mm / 2 + depth_mm))
-
     # --- moves -----------------------------------------------------------------------------
 
     def _lane(
@@ -265,7 +260,7 @@ class RoutePlanner:
             to_floor=to_level,
             face_doors=self._turn(here, facing, "facing the elevator doors"),
             enter=[
-                self._drive_to(here, self.inside_point(here, door_here, depth), "into the car"),
+                self._drive_to(here, here.behind_door(door_here, depth), "into the car"),
                 self._turn(here, facing + 180.0, "turning round in the car"),
             ],
             exit=[
@@ -355,7 +350,7 @@ class RoutePlanner:
         self, floor: Floor, door: Door, detail: str = "to the loading spot"
     ) -> Move:
         """Where the cup is loaded: ``base_depth_mm`` behind the base room's door line."""
-        point = self.inside_point(floor, door, door.recess_mm + self.nav.base_depth_mm)
+        point = floor.behind_door(door, door.recess_mm + self.nav.base_depth_mm)
         return self._drive_to(floor, point, detail)
 
     def loading(self) -> list[Step]:
