@@ -286,10 +286,18 @@ class TrackingConfig(Section):
         description="faster over the ground is no one: readings jumping between things",
     )
     max_sigma_mm: float = Field(
-        60.0,
+        150.0,
         gt=0,
         le=DISTANCE_MM,
-        description="readings reporting a larger sigma (blends of near and far) are not tracked",
+        description="readings reporting a larger sigma (blends of near and far) are not "
+        "tracked; below it the sigma weighs the reading (a person 2 m ahead reports ~140)",
+    )
+    closing_sigmas: float = Field(
+        2.0,
+        ge=0,
+        le=10,
+        description="an oncoming mover's closing speed is taken this many sigmas above its "
+        "estimate: a new track's speed is still uncertain when the robot must act on it",
     )
     corridor_margin_mm: float = Field(
         100.0,
@@ -575,9 +583,7 @@ class ParticleFilterConfig(Section):
     relocalize_sigma_mm: float = Field(
         300.0, gt=0, description="on arriving at another floor, the cloud is widened to this"
     )
-    relocalize_sigma_deg: float = Field(
-        10.0, gt=0, description="... and its headings to this"
-    )
+    relocalize_sigma_deg: float = Field(10.0, gt=0, description="... and its headings to this")
     # What goes on the board for the live map.
     cloud_points: int = Field(
         150, ge=0, description="particles published on state/particles for the map (0: none)"
@@ -588,8 +594,7 @@ class ParticleFilterConfig(Section):
     def _bounds(self) -> ParticleFilterConfig:
         if self.min_particles > self.max_particles:
             raise ValueError(
-                f"min_particles ({self.min_particles}) exceeds max_particles "
-                f"({self.max_particles})"
+                f"min_particles ({self.min_particles}) exceeds max_particles ({self.max_particles})"
             )
         if self.recovery_alpha_slow >= self.recovery_alpha_fast:
             raise ValueError("recovery_alpha_slow must be below recovery_alpha_fast")

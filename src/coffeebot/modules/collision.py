@@ -12,10 +12,17 @@ from typing import ClassVar
 from coffeebot.config import RobotConfig
 from coffeebot.floorplan import FloorPlan
 from coffeebot.logs import Event, Transitions
-from coffeebot.messages import COLLISION, CURRENT_STATE, ODOMETRY, RANGE_SCAN, SafetyState
+from coffeebot.messages import (
+    COLLISION,
+    CURRENT_STATE,
+    ODOMETRY,
+    RANGE_SCAN,
+    PoseEstimate,
+    SafetyState,
+)
 from coffeebot.modules.base import Module, ModuleContext
 from coffeebot.perception.collision import CollisionMonitor
-from coffeebot.perception.walls import Explainer, explainer
+from coffeebot.perception.walls import Explainer, carried, explainer, trusted
 
 ODOMETRY_STALE_S = 0.5
 """Odometry older than this is no speed: the monitor assumes the worst."""
@@ -33,6 +40,8 @@ class CollisionModule(Module):
         self.config = config
         self.plan = plan
         self.monitor = self._new_monitor()
+        self._trusted: tuple[PoseEstimate, tuple[float, float, float], float] | None = None
+        """The last pose good enough for the walls, the odometry then, and when."""
 
     def _new_monitor(self) -> CollisionMonitor:
         cfg = self.config
@@ -58,16 +67,33 @@ class CollisionModule(Module):
         return (left + right) / 2.0, yaw_rate
 
     def _explainer(self, ctx: ModuleContext) -> Explainer | None:
-        """Wall explanations from the latest pose, if it is fresh and its heading good."""
+        """Wall explanations from the latest pose, if it is fresh and its heading good; else
+        from the last good one carried on by the wheels, for up to ``stale_pose_s``.
+
+        A particle filter that injects fresh hypotheses reports a wide heading sigma for a
+        few cycles while its estimate stays where it was: the robot has not lost its heading
+        in 25 ms, and without the walls every wall return would become a track whose first,
+        noisy velocities look like someone stepping into the way.
+        """
         state, age = ctx.board.latest(CURRENT_STATE), ctx.board.age(CURRENT_STATE)
-        if state is None or age is None or age > self.config.motion.stale_pose_s:
+        stale_s = self.config.motion.stale_pose_s
+        if state is None or age is None or age > stale_s:
             return None
-        pose = state.msg.pose
+        pose, now = state.msg.pose, ctx.clock.now()
+        odometry = self.monitor.tracker.odometry
+        if trusted(pose):
+            self._trusted = (pose, odometry.snapshot(), now)
+        elif self._trusted is not None and now - self._trusted[2] <= stale_s:
+            last, then, _ = self._trusted
+            if last.floor != pose.floor:
+                return None
+            pose = carried(last, *odometry.since(then))
         return explainer(self.plan.floor(pose.floor), pose, self.config.motion.wall_margin_mm)
 
     async def run(self, ctx: ModuleContext) -> None:
         # A restart forgets everything: back to "stop" until every face is clear again.
         self.monitor = self._new_monitor()
+        self._trusted = None
         # Starting in "stop" is the rule, not an event; every change after it is logged once.
         safety = Transitions(ctx.log, initial={"collision": SafetyState.STOP.value})
         with ctx.board.subscribe(RANGE_SCAN) as scans:

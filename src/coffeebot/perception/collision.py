@@ -449,16 +449,20 @@ class CollisionMonitor:
         """A mover in the corridor ahead walking towards the robot: it keeps coming while the
         robot brakes, so the robot slows to a speed it can stop from before they meet, and
         stands once it cannot; someone who then walks into it has walked into a standing
-        robot."""
+        robot. Its closing speed is taken ``closing_sigmas`` above the estimate: a person
+        first seen 2 m ahead is a new track whose speed is still being learned, and at
+        1.5 m/s closing the robot cannot wait for it."""
         cfg = self.cfg
         worst: tuple[float, float, float] | None = None  # (limit, gap, closing)
-        margin = self.tracker.cfg.corridor_margin_mm
+        tracking = self.tracker.cfg
         for track in self.tracker.movers():
             x, y = self.tracker.odometry.to_local(track.state[0], track.state[1])
             vx, _ = self.tracker.odometry.rotate_to_local(track.state[2], track.state[3])
-            closing = -vx
-            if abs(y) > self.half_width_mm + margin or x < self.front_mm or closing <= 0:
+            if abs(y) > self.half_width_mm + tracking.corridor_margin_mm or x < self.front_mm:
                 continue
+            if vx >= 0:
+                continue
+            closing = -vx + tracking.closing_sigmas * self.tracker.speed_sigma_ahead_mm_s(track)
             gap = x - self.front_mm
             limit = safe_speed_mm_s(cfg, gap - cfg.margin_mm - cfg.hysteresis_mm, closing)
             if worst is None or limit < worst[0]:

@@ -99,6 +99,17 @@ class Odometry2D:
         c, s = math.cos(self.theta), math.sin(self.theta)
         return self.x + c * x - s * y, self.y + s * x + c * y
 
+    def snapshot(self) -> tuple[float, float, float]:
+        return self.x, self.y, self.theta
+
+    def since(self, snapshot: tuple[float, float, float]) -> tuple[float, float, float]:
+        """How far the robot moved since ``snapshot``: (forward mm, left mm, turned rad) in
+        the robot frame it had then."""
+        x0, y0, theta0 = snapshot
+        c, s = math.cos(theta0), math.sin(theta0)
+        dx, dy = self.x - x0, self.y - y0
+        return c * dx + s * dy, -s * dx + c * dy, self.theta - theta0
+
     def rotate_to_local(self, vx: float, vy: float) -> tuple[float, float]:
         c, s = math.cos(self.theta), math.sin(self.theta)
         return c * vx + s * vy, -s * vx + c * vy
@@ -118,7 +129,7 @@ class ReturnTracker:
 
     def sightings(self, scan: RangeScan, skip: Collection[int] = ()) -> list[Sighting]:
         """Each healthy valid reading within ``max_range_mm`` and ``max_sigma_mm`` as a point
-        in the odometry frame, but those of the sensors in ``skip``: a reading with a large
+        in the odometry frame, but those of the sensors in ``skip``: a reading with a larger
         sigma is a blend of near and far returns, a position that jumps between them."""
         found = []
         for reading in scan.readings:
@@ -139,7 +150,9 @@ class ReturnTracker:
             ly = sensor.y_mm + d * math.sin(look)
             x, y = self.odometry.to_odom(lx, ly)
             across = max(d * math.tan(math.radians(sensor.fov_deg / 2.0)) / 2.0, 20.0)
-            along = self.cfg.range_sigma_mm
+            # The chip's own sigma widens the point along the axis: a far or dim return (a
+            # person 2 m ahead) counts, but moves the track less than a crisp one.
+            along = math.hypot(self.cfg.range_sigma_mm, reading.sigma_mm or 0.0)
             heading = self.odometry.theta + look
             c, s = math.cos(heading), math.sin(heading)
             rotation = np.array([[c, -s], [s, c]])
@@ -236,9 +249,15 @@ class ReturnTracker:
             and cfg.mover_speed_mm_s <= t.speed_mm_s <= cfg.max_mover_speed_mm_s
         ]
 
-    def lost_near(
-        self, front_mm: float, half_width_mm: float, reach_mm: float
-    ) -> LostMover | None:
+    def speed_sigma_ahead_mm_s(self, track: Track) -> float:
+        """The 1-sigma uncertainty of ``track``'s velocity along the robot's heading: large
+        while a new track's velocity is still being learned."""
+        c, s = math.cos(self.odometry.theta), math.sin(self.odometry.theta)
+        p = track.covariance[2:, 2:]
+        variance = c * c * p[0, 0] + 2.0 * c * s * p[0, 1] + s * s * p[1, 1]
+        return math.sqrt(max(0.0, float(variance)))
+
+    def lost_near(self, front_mm: float, half_width_mm: float, reach_mm: float) -> LostMover | None:
         """The latest lost mover last seen beside or in the corridor ahead: within
         ``reach_mm`` of it sideways, from the rear of the body to ``reach_mm`` past its front
         (robot frame); None if none."""

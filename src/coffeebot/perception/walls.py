@@ -76,11 +76,31 @@ MAX_HEADING_SIGMA_DEG = 5.0
 """A pose heading less certain than this places no reading on the plan's walls."""
 
 
+def trusted(pose: PoseEstimate) -> bool:
+    """Whether ``pose`` is good enough to place readings on the plan's walls."""
+    return pose.initialised and pose.sigma_heading_deg <= MAX_HEADING_SIGMA_DEG
+
+
+def carried(
+    pose: PoseEstimate, forward_mm: float, left_mm: float, turned_rad: float
+) -> PoseEstimate:
+    """``pose`` moved on by a displacement in its own robot frame (dead reckoning)."""
+    h = math.radians(pose.heading_deg)
+    c, s = math.cos(h), math.sin(h)
+    return pose.model_copy(
+        update={
+            "x_mm": pose.x_mm + c * forward_mm - s * left_mm,
+            "y_mm": pose.y_mm + s * forward_mm + c * left_mm,
+            "heading_deg": pose.heading_deg + math.degrees(turned_rad),
+        }
+    )
+
+
 def explainer(floor: Floor, pose: PoseEstimate, tolerance_mm: float) -> Explainer | None:
     """Wall explanations from ``pose`` (None when its heading is too uncertain to trust): a
     reading within ``tolerance_mm`` of where some ray of the cone, widened by twice the
     heading's sigma, meets a wall."""
-    if not pose.initialised or pose.sigma_heading_deg > MAX_HEADING_SIGMA_DEG:
+    if not trusted(pose):
         return None
     slack = 2.0 * pose.sigma_heading_deg
 
