@@ -458,9 +458,8 @@ class CollisionMonitor:
         for track in self.tracker.movers():
             x, y = self.tracker.odometry.to_local(track.state[0], track.state[1])
             vx, _ = self.tracker.odometry.rotate_to_local(track.state[2], track.state[3])
-            if abs(y) > self.half_width_mm + tracking.corridor_margin_mm or x < self.front_mm:
-                continue
-            if vx >= 0:
+            beside = abs(y) > self.half_width_mm + tracking.corridor_margin_mm
+            if beside or x < self.front_mm or vx >= 0:
                 continue
             closing = -vx + tracking.closing_sigmas * self.tracker.speed_sigma_ahead_mm_s(track)
             gap = x - self.front_mm

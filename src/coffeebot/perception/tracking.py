@@ -76,6 +76,13 @@ class LostMover:
     t_s: float
 
 
+def _in_frame(pose: tuple[float, float, float], x: float, y: float) -> tuple[float, float]:
+    """An odometry-frame point in the robot frame of ``pose`` (x, y, theta)."""
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    dx, dy = x - pose[0], y - pose[1]
+    return c * dx + s * dy, -s * dx + c * dy
+
+
 class Odometry2D:
     """The robot's pose in a local frame, dead-reckoned from speed and yaw rate."""
 
@@ -91,9 +98,7 @@ class Odometry2D:
 
     def to_local(self, x: float, y: float) -> tuple[float, float]:
         """An odometry-frame point in the robot frame."""
-        c, s = math.cos(self.theta), math.sin(self.theta)
-        dx, dy = x - self.x, y - self.y
-        return c * dx + s * dy, -s * dx + c * dy
+        return _in_frame((self.x, self.y, self.theta), x, y)
 
     def to_odom(self, x: float, y: float) -> tuple[float, float]:
         c, s = math.cos(self.theta), math.sin(self.theta)
@@ -105,10 +110,8 @@ class Odometry2D:
     def since(self, snapshot: tuple[float, float, float]) -> tuple[float, float, float]:
         """How far the robot moved since ``snapshot``: (forward mm, left mm, turned rad) in
         the robot frame it had then."""
-        x0, y0, theta0 = snapshot
-        c, s = math.cos(theta0), math.sin(theta0)
-        dx, dy = self.x - x0, self.y - y0
-        return c * dx + s * dy, -s * dx + c * dy, self.theta - theta0
+        forward, left = _in_frame(snapshot, self.x, self.y)
+        return forward, left, self.theta - snapshot[2]
 
     def rotate_to_local(self, vx: float, vy: float) -> tuple[float, float]:
         c, s = math.cos(self.theta), math.sin(self.theta)

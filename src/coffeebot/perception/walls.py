@@ -19,7 +19,7 @@ import numpy as np
 from coffeebot.config import TofSensorConfig
 from coffeebot.floorplan import Floor
 from coffeebot.messages import PoseEstimate
-from coffeebot.perception.geometry import sensor_origin
+from coffeebot.perception.geometry import sensor_origin, wrap_deg
 
 RAYS = 15
 """Rays across the (widened) cone when asking which of them meet a wall."""
@@ -91,7 +91,7 @@ def carried(
         update={
             "x_mm": pose.x_mm + c * forward_mm - s * left_mm,
             "y_mm": pose.y_mm + s * forward_mm + c * left_mm,
-            "heading_deg": pose.heading_deg + math.degrees(turned_rad),
+            "heading_deg": wrap_deg(pose.heading_deg + math.degrees(turned_rad)),
         }
     )
 

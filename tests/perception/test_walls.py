@@ -1,0 +1,49 @@
+"""The pose the walls are placed from, carried on by the wheels through a heading-sigma spike."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from coffeebot.messages import PoseEstimate
+from coffeebot.perception.tracking import Odometry2D
+from coffeebot.perception.walls import carried, trusted
+
+
+def pose(heading_deg: float, sigma_heading_deg: float = 1.0) -> PoseEstimate:
+    return PoseEstimate(
+        x_mm=1000.0,
+        y_mm=-300.0,
+        heading_deg=heading_deg,
+        floor=2,
+        sigma_x_mm=20.0,
+        sigma_y_mm=20.0,
+        sigma_heading_deg=sigma_heading_deg,
+    )
+
+
+def test_a_pose_with_a_wide_heading_sigma_is_not_trusted() -> None:
+    assert trusted(pose(0.0, 2.0))
+    assert not trusted(pose(0.0, 35.8))
+
+
+def test_odometry_since_a_snapshot_is_in_the_robot_frame_of_then() -> None:
+    odometry = Odometry2D()
+    odometry.advance(0.0, 90.0, 1.0)  # turn to face +y in the odometry frame
+    then = odometry.snapshot()
+    odometry.advance(500.0, 0.0, 1.0)  # 500 mm straight ahead
+    forward, left, turned = odometry.since(then)
+    assert forward == pytest.approx(500.0)
+    assert left == pytest.approx(0.0, abs=1e-9)
+    assert turned == pytest.approx(0.0)
+
+
+def test_a_carried_pose_moves_along_its_own_heading_and_keeps_its_sigmas() -> None:
+    start = pose(90.0)
+    moved = carried(start, 200.0, 50.0, math.radians(10.0))
+    assert moved.x_mm == pytest.approx(1000.0 - 50.0)
+    assert moved.y_mm == pytest.approx(-300.0 + 200.0)
+    assert moved.heading_deg == pytest.approx(100.0)
+    assert moved.sigma_heading_deg == start.sigma_heading_deg
+    assert carried(pose(175.0), 0.0, 0.0, math.radians(10.0)).heading_deg == pytest.approx(-175.0)
