@@ -6,7 +6,10 @@ import asyncio
 import json
 import logging
 import re
+import threading
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import pytest
 from mcap.reader import make_reader
@@ -21,6 +24,7 @@ from coffeebot.board.recording import (
     recording_info,
     schema_name,
 )
+from coffeebot.clock import SteppedClock
 from coffeebot.messages import (
     ALL_TOPICS,
     COLLISION,
@@ -189,3 +193,40 @@ async def test_the_closing_line_says_what_its_counts_mean(
     [closed] = [r.getMessage() for r in caplog.records if "recording closed" in r.getMessage()]
     assert "405 messages written, 0 lost; 0 sensor values skipped" in closed
     assert "keep the newest value" in closed
+
+
+async def test_simulated_time_waits_while_the_file_is_opened(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A slow disk must not let the simulated world step on: a recorded run would start at
+    another simulated moment than an unrecorded one, and take another course."""
+    clock = SteppedClock()
+    clock.lockstep.engage(True)
+    opening, release = threading.Event(), threading.Event()
+    open_file = Recorder._open
+
+    def slow_open(self: Recorder) -> Any:
+        opening.set()
+        release.wait(5.0)
+        return open_file(self)
+
+    monkeypatch.setattr(Recorder, "_open", slow_open)
+    recorder = Recorder(Board(ALL_TOPICS, clock=clock), tmp_path / "slow.mcap")
+    start = asyncio.create_task(recorder.start())
+    assert await asyncio.to_thread(opening.wait, 5.0)
+    results: list[Callable[[], None]] = []
+    settled = threading.Thread(target=lambda: results.extend(clock.lockstep.settle()), daemon=True)
+    settled.start()
+    settled.join(0.2)
+    assert settled.is_alive(), "the world could step while the file was being opened"
+    release.set()
+    await asyncio.to_thread(settled.join, 5.0)
+    assert not settled.is_alive()
+    for deliver in results:
+        deliver()
+    await asyncio.wait_for(start, 5.0)
+    clock.lockstep.engage(False)  # the world has stopped: the closing call is not held
+    await asyncio.wait_for(recorder.stop(), 5.0)
+    assert [t.name for t in recording_info(tmp_path / "slow.mcap").topics] == [
+        t.name for t in ALL_TOPICS
+    ]

@@ -30,6 +30,7 @@ from coffeebot import __version__
 from coffeebot.board.board import Board, BoardOverflowError, Subscription
 from coffeebot.board.topic import Envelope, Topic
 from coffeebot.errors import BoardError
+from coffeebot.hardware.worker import DeviceWorker
 from coffeebot.logs import Event, log_event
 
 log = logging.getLogger(__name__)
@@ -92,6 +93,10 @@ class Recorder:
         self.overflowed = 0
         """Messages lost because a reliable subscription of the recorder overflowed."""
         self.error: BaseException | None = None
+        self._disk = DeviceWorker("mcap-file", board.clock)
+        """Opens and closes the file: on the simulator's clock a call in the lockstep ledger,
+        so the world does not step on while the disk is slow and a recorded run starts (and
+        ends) at the same simulated moment as one that is not recorded."""
         self._discarded = 0
         self._backlog: deque[Envelope[Any]] = deque()
         self._backlog_size = backlog_size
@@ -137,7 +142,11 @@ class Recorder:
         return stream, writer, channels
 
     async def start(self) -> None:
-        opened = await asyncio.to_thread(self._open)
+        try:
+            opened = await self._disk.call(self._open)
+        except BaseException:
+            self._disk.close()
+            raise
         self._thread = threading.Thread(
             target=self._write, args=opened, name="mcap-recorder", daemon=True
         )
@@ -233,7 +242,10 @@ class Recorder:
         for pump in self._pumps:
             # A closed subscription still hands out what it buffered, then ends its pump.
             await pump
-        await asyncio.to_thread(self._finish)
+        try:
+            await self._disk.call(self._finish)
+        finally:
+            self._disk.close()
         log.info(
             "recording closed: %s: %d messages written, %d lost; %d sensor values skipped "
             "(latest-only topics keep the newest value, the recorder takes what is there)",
