@@ -137,7 +137,15 @@ class MotorConfig(SerialPortConfig):
         description="driven axle ahead of the body centre (the seed's front wheels)",
     )
     max_speed_mm_s: float = Field(1000.0, gt=0, le=SPEED_MM_S)
-    max_accel_mm_s2: float = Field(500.0, gt=0, le=ACCEL_MM_S2)
+    max_accel_mm_s2: float = Field(
+        500.0, gt=0, le=ACCEL_MM_S2, description="the controller's ramp towards a set-point"
+    )
+    brake_mm_s2: float = Field(
+        1000.0,
+        gt=0,
+        le=ACCEL_MM_S2,
+        description="the controller's active braking on a stop line (0.1 g: a lidded cup rides it)",
+    )
     watchdog_ms: int = Field(200, gt=0, le=1000, description="controller stops without a command")
     telemetry_timeout_s: float = Field(
         0.5,

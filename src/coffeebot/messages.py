@@ -11,7 +11,7 @@ from __future__ import annotations
 from enum import StrEnum
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from coffeebot.board.topic import Delivery, Topic
 
@@ -142,6 +142,15 @@ class MotorCommand(Message):
     left_mm_s: float
     right_mm_s: float
     reason: str = ""
+    brake: bool = False
+    """A safety stop: the controller's active braking (its ``S`` line), not its gentler ramp
+    towards a zero set-point. Only with both speeds 0."""
+
+    @model_validator(mode="after")
+    def _brake_means_standing(self) -> MotorCommand:
+        if self.brake and (self.left_mm_s or self.right_mm_s):
+            raise ValueError("a braking command must set both wheel speeds to 0")
+        return self
 
 
 # --- operator -----------------------------------------------------------------------------

@@ -10,6 +10,7 @@ from collections.abc import AsyncIterator, Callable
 from typing import Any
 
 import pytest
+from pydantic import ValidationError
 
 from coffeebot.board import Board
 from coffeebot.clock import Clock, MonotonicClock
@@ -143,6 +144,25 @@ async def test_motor_commands_reach_controller_and_odometry_comes_back(
         assert odo.right_mm_s == 150 and not odo.watchdog_tripped
     assert sim_motor.commands[-1].kind == "S"  # shutdown sent a stop
     assert sim_motor.setpoint == (0, 0)
+
+
+async def test_a_braking_command_is_the_controllers_stop_line(
+    sim_motor: SimMotorController, motor_driver: MotorDriver, context_for: ContextFor
+) -> None:
+    async with running(motor_driver, context_for) as board:
+        await board.next(ODOMETRY, timeout=5.0)
+        board.publish(MOTOR_COMMAND, MotorCommand(left_mm_s=200, right_mm_s=200))
+        await until(lambda: sim_motor.setpoint == (200, 200))
+        board.publish(MOTOR_COMMAND, MotorCommand(left_mm_s=0, right_mm_s=0))
+        await until(lambda: sim_motor.commands[-1].kind == "V" and sim_motor.setpoint == (0, 0))
+        board.publish(MOTOR_COMMAND, MotorCommand(left_mm_s=0, right_mm_s=0, brake=True))
+        await until(lambda: sim_motor.commands[-1].kind == "S")
+        assert motor_driver.counters.stale_stops == 0
+
+
+def test_only_a_standing_command_may_brake() -> None:
+    with pytest.raises(ValidationError, match="both wheel speeds to 0"):
+        MotorCommand(left_mm_s=0, right_mm_s=100, brake=True)
 
 
 async def test_stale_command_becomes_stop(

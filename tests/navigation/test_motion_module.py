@@ -109,6 +109,8 @@ async def test_collision_stop_stops_at_once(rig: Rig) -> None:
     rig.feed(stop)
     await rig.clock.advance(0.0)
     assert rig.speed() == 0
+    command = rig.board.latest(MOTOR_COMMAND)
+    assert command is not None and command.msg.brake  # the controller's stop line, not its ramp
 
 
 async def test_never_faster_than_the_rated_speed(rig: Rig) -> None:
@@ -225,6 +227,27 @@ async def test_front_stop_that_allows_rotating_turns_on_the_spot_only(rig: Rig) 
     frozen = held.model_copy(update={"may_rotate": False})
     await rig.run_for(0.2, frozen)
     assert wheels(rig) == (0.0, 0.0)
+
+
+async def test_a_robot_still_rolling_brakes_before_it_turns_on_the_spot(rig: Rig) -> None:
+    """A turn command would only ramp the wheels down from cruising speed: brake first."""
+    rig.board.publish(
+        MOVE_INSTRUCTION, MoveInstruction(id=2, action="turn", floor=2, heading_deg=-60.0)
+    )
+    held = CollisionStatus(
+        state=SafetyState.STOP, scan_seq=2, face="front", blocked_faces=("front",), may_rotate=True
+    )
+    rolling = POSE.model_copy(update={"speed_mm_s": 400.0})
+    for _ in range(3):
+        rig.board.publish(CURRENT_STATE, CurrentState(pose=rolling))
+        rig.board.publish(ODOMETRY, TELEMETRY)
+        rig.board.publish(COLLISION, held)
+        await rig.clock.advance(CONFIG.motion.period_s)
+    command = rig.board.latest(MOTOR_COMMAND)
+    assert command is not None and command.msg.brake
+    await rig.run_for(0.3, held)  # standing (the rig's pose has speed 0): the turn goes on
+    left, right = wheels(rig)
+    assert left > 0 > right
 
 
 async def test_a_stale_pose_stops_even_a_turn_the_front_stop_allows(rig: Rig) -> None:

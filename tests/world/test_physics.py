@@ -105,6 +105,31 @@ def test_acceleration_is_limited(tiny_plan: FloorPlan) -> None:
     assert world.robot.wheel_speeds_mm_s[0] == pytest.approx(250.0)
 
 
+def test_a_stop_line_brakes_harder_than_the_ramp(tiny_plan: FloorPlan) -> None:
+    """From 500 mm/s a zero set-point ramps down in 1 s and 250 mm; the stop line brakes at
+    1000 mm/s^2, standing in 0.5 s and 125 mm."""
+    travelled = []
+    for brake in (False, True):
+        robot = RobotSpec(right_motor_gain=1.0, slip_sigma=0.0)
+        world = World(tiny_plan, robot, floor=1, pose=Pose(500, 0, 0))
+        _drive(world, 1.2, 500, 500)
+        start = world.robot.pose.x_mm
+        world.robot.command_wheels(0.0, 0.0, brake=brake)
+        for _ in range(round(0.5 / 0.02)):
+            world.step(0.02)
+        standing = world.robot.wheel_speeds_mm_s == (0.0, 0.0)
+        for _ in range(round(0.6 / 0.02)):
+            world.step(0.02)
+        travelled.append((standing, world.robot.pose.x_mm - start))
+    (ramp_standing, ramp_mm), (brake_standing, brake_mm) = travelled
+    assert not ramp_standing and ramp_mm == pytest.approx(250.0, abs=1.0)
+    assert brake_standing and brake_mm == pytest.approx(125.0, abs=1.0)
+    # The next set-point is followed on the ramp again.
+    world.robot.command_wheels(800, 800)
+    world.step(0.5)
+    assert world.robot.wheel_speeds_mm_s[0] == pytest.approx(250.0)
+
+
 def test_driving_into_the_end_wall_is_one_collision(tiny_plan: FloorPlan) -> None:
     robot = RobotSpec(right_motor_gain=1.0, slip_sigma=0.0)
     world = World(tiny_plan, robot, floor=1, pose=Pose(8500, 0, 0))

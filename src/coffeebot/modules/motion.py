@@ -56,6 +56,9 @@ from coffeebot.navigation.openings import OpeningZones, ZoneLimit
 
 MIN_TURN_DPS = 1.0
 """Below this a turn on the spot under a front stop is not worth sending: stand still."""
+BRAKE_BEFORE_TURN_MM_S = 50.0
+"""A robot held by something ahead while still rolling faster than this brakes to a stand
+before it may turn on the spot: a turn command would only ramp the wheels down."""
 UNSAFE_HEALTH = (HealthStatus.FAILED, HealthStatus.STOPPED, HealthStatus.RESTARTING)
 
 
@@ -164,7 +167,11 @@ class MotionModule(Module):
         self._stopping = False
 
     def _stop(self, board: ModuleBoard, reason: str) -> None:
-        board.publish(MOTOR_COMMAND, MotorCommand(left_mm_s=0.0, right_mm_s=0.0, reason=reason))
+        """Stand still, braking actively: every stop here is one the safety gate (or the
+        module's start and end) calls for, never the end of a profile."""
+        board.publish(
+            MOTOR_COMMAND, MotorCommand(left_mm_s=0.0, right_mm_s=0.0, reason=reason, brake=True)
+        )
 
     async def _watch_health(self, ctx: ModuleContext) -> None:
         with ctx.board.subscribe(HEALTH) as reports:
@@ -233,7 +240,13 @@ class MotionModule(Module):
         instruction = ctx.board.latest(MOVE_INSTRUCTION)
         ins = None if instruction is None else instruction.msg
         state = ctx.board.latest(CURRENT_STATE)
-        if gate.cause is StopCause.COLLISION_STOP and gate.may_rotate and state is not None:
+        rolling = state is not None and abs(state.msg.pose.speed_mm_s) > BRAKE_BEFORE_TURN_MM_S
+        if (
+            gate.cause is StopCause.COLLISION_STOP
+            and gate.may_rotate
+            and state is not None
+            and not rolling
+        ):
             # Held by something ahead, but turning on the spot is allowed: the turn the
             # controller wants (into a door, away from a jamb, round a box) may clear it.
             command = self.controller.step(ins, state.msg.pose, now, dt, 0.0)

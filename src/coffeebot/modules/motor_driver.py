@@ -190,7 +190,10 @@ class MotorDriver(SerialDeviceModule[MotorCounters]):
                     MOTOR_COMMAND.name, FRESH, Event.SAFETY_CLEAR, "motor commands resumed"
                 ):
                     self._commands_health(ctx, HealthStatus.RUNNING, "motor commands resumed")
-                await writer.call(ctrl.set_speeds, latest.msg.left_mm_s, latest.msg.right_mm_s)
+                if latest.msg.brake:
+                    await writer.call(ctrl.stop)
+                else:
+                    await writer.call(ctrl.set_speeds, latest.msg.left_mm_s, latest.msg.right_mm_s)
                 self.counters.commands += 1
             else:
                 if latest is not None and not self._stopping:

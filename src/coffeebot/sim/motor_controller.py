@@ -54,9 +54,15 @@ class Drive(Protocol):
     """The motors and sensors behind the controller; ``now`` is the controller's clock."""
 
     def command(
-        self, left_mm_s: float, right_mm_s: float, now: float, until: float = math.inf
+        self,
+        left_mm_s: float,
+        right_mm_s: float,
+        now: float,
+        until: float = math.inf,
+        brake: bool = False,
     ) -> None:
-        """Drive towards the set-point from ``now``; at ``until`` the watchdog stops it."""
+        """Drive towards the set-point from ``now``; at ``until`` the watchdog stops it.
+        ``brake``: a stop line, braking actively rather than ramping down."""
 
     def sample(self, now: float) -> DriveSample: ...
 
@@ -90,7 +96,12 @@ class IdealDrive:
             self._setpoint, self._until = (0.0, 0.0), math.inf
 
     def command(
-        self, left_mm_s: float, right_mm_s: float, now: float, until: float = math.inf
+        self,
+        left_mm_s: float,
+        right_mm_s: float,
+        now: float,
+        until: float = math.inf,
+        brake: bool = False,
     ) -> None:
         self._integrate(now)
         self._setpoint = (left_mm_s, right_mm_s)
@@ -148,9 +159,11 @@ class SimMotorController(UartDevice):
     def watchdog_tripped(self) -> bool:
         return self._tripped
 
-    def _set(self, left: int, right: int, now: float, until: float = math.inf) -> None:
+    def _set(
+        self, left: int, right: int, now: float, until: float = math.inf, brake: bool = False
+    ) -> None:
         self._setpoint = (left, right)
-        self.drive.command(left, right, now, until)
+        self.drive.command(left, right, now, until, brake)
 
     def on_data(self, data: bytes) -> None:
         with self._lock:
@@ -182,7 +195,7 @@ class SimMotorController(UartDevice):
             self.send(encode("I", FIRMWARE, WATCHDOG_MS, TELEMETRY_HZ))
             return
         self.commands.append(Command(now, kind, left, right))
-        self._set(left, right, now, until=now + WATCHDOG_MS / 1000.0)
+        self._set(left, right, now, until=now + WATCHDOG_MS / 1000.0, brake=kind == "S")
         self._last_command = now
         self._tripped = False
 

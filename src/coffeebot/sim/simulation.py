@@ -54,11 +54,18 @@ class WorldDrive:
         self.sim = sim
 
     def command(
-        self, left_mm_s: float, right_mm_s: float, now: float, until: float = math.inf
+        self,
+        left_mm_s: float,
+        right_mm_s: float,
+        now: float,
+        until: float = math.inf,
+        brake: bool = False,
     ) -> None:
         robot = self.sim.robot
         with self.sim.world_time():
-            robot.command_wheels(left_mm_s, right_mm_s, until_s=self.sim.shared.world_t(until))
+            robot.command_wheels(
+                left_mm_s, right_mm_s, until_s=self.sim.shared.world_t(until), brake=brake
+            )
 
     def sample(self, now: float) -> DriveSample:
         robot = self.sim.robot

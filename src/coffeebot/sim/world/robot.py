@@ -45,6 +45,7 @@ class RobotSpec(BaseModel):
     ticks_per_rev: int = Field(360, gt=0)
     max_speed_mm_s: float = Field(1000.0, gt=0)
     max_accel_mm_s2: float = Field(500.0, gt=0)
+    brake_mm_s2: float = Field(1000.0, gt=0, description="active braking on a stop line")
     left_motor_gain: float = Field(1.0, gt=0)
     right_motor_gain: float = Field(0.98, gt=0)
     left_wheel_scale: float = Field(1.0, gt=0)
@@ -67,6 +68,7 @@ class RobotSpec(BaseModel):
             "ticks_per_rev": config.motor.ticks_per_rev,
             "max_speed_mm_s": config.motor.max_speed_mm_s,
             "max_accel_mm_s2": config.motor.max_accel_mm_s2,
+            "brake_mm_s2": config.motor.brake_mm_s2,
             "sensors": tuple(
                 SensorMount.model_validate(s, from_attributes=True)
                 for s in sorted(config.tof.sensors, key=lambda s: s.id)
@@ -102,6 +104,7 @@ class RobotBody:
         self.spec = spec
         self.state = BodyState(pose.x_mm, pose.y_mm, math.radians(pose.heading_deg))
         self._target = (0.0, 0.0)
+        self._ramp_mm_s2 = spec.max_accel_mm_s2
 
     @property
     def pose(self) -> Pose:
@@ -121,18 +124,20 @@ class RobotBody:
             yaw_rate_rad_s=0.0,
         )
 
-    def command(self, left_mm_s: float, right_mm_s: float) -> None:
-        """Wheel speeds the motor controller drives towards, clamped to the motors' limit."""
+    def command(self, left_mm_s: float, right_mm_s: float, brake: bool = False) -> None:
+        """Wheel speeds the motor controller drives towards, clamped to the motors' limit: on
+        its ramp, or braking actively to a stop (``brake``, both speeds 0)."""
         limit = self.spec.max_speed_mm_s
         self._target = (
             max(-limit, min(limit, left_mm_s)),
             max(-limit, min(limit, right_mm_s)),
         )
+        self._ramp_mm_s2 = self.spec.brake_mm_s2 if brake else self.spec.max_accel_mm_s2
 
     def propose(self, dt: float, rng: np.random.Generator) -> BodyState:
         """The state after ``dt`` seconds if nothing is in the way (arc model, exact)."""
         spec, s = self.spec, self.state
-        step = spec.max_accel_mm_s2 * dt
+        step = self._ramp_mm_s2 * dt
         left = s.left_mm_s + max(-step, min(step, self._target[0] - s.left_mm_s))
         right = s.right_mm_s + max(-step, min(step, self._target[1] - s.right_mm_s))
         # Mean motor speed over the step: exact while accelerating uniformly.

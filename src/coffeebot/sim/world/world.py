@@ -378,11 +378,11 @@ class WorldRobot:
     # --- motor controller ------------------------------------------------------------------
 
     def command_wheels(
-        self, left_mm_s: float, right_mm_s: float, until_s: float = math.inf
+        self, left_mm_s: float, right_mm_s: float, until_s: float = math.inf, brake: bool = False
     ) -> None:
         """Wheel speeds the motor controller is driving towards (nominal mm/s), until the
-        world's time ``until_s``, when its watchdog stops them."""
-        self.body.command(left_mm_s, right_mm_s)
+        world's time ``until_s``, when its watchdog stops them; ``brake``: its stop line."""
+        self.body.command(left_mm_s, right_mm_s, brake)
         self._command_until = until_s
 
     @property
