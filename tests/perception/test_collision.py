@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from perception_helpers import robot, scan
 
-from coffeebot.config import CollisionConfig
+from coffeebot.config import CollisionConfig, TofSensorConfig
 from coffeebot.messages import RangeReading, ReadingStatus, SafetyState
 from coffeebot.perception.collision import CollisionMonitor, safe_speed_mm_s, stop_distance_mm
 
@@ -229,6 +229,25 @@ def test_narrow_return_gets_the_overhang_margin() -> None:
     assert "narrow" in status.reason
     # The same distance across the whole front is a wide obstacle: the seed radius applies.
     assert monitor().update(scan({**CLEAR, **ahead(400)}), 0, 1).state is SafetyState.SLOW
+
+
+def test_a_plan_wall_that_reads_narrow_gets_no_overhang_margin() -> None:
+    """Turning out beside a side wall, one toed-out cone sees the wall ahead while the
+    others look along the hallway: as narrow as a pole, but nothing overhangs a wall."""
+
+    def wall_at(sensor: TofSensorConfig, distance: int) -> np.ndarray | None:
+        if sensor.id != 3:
+            return None
+        return np.array([[sensor.x_mm + distance, sensor.y_mm]])
+
+    readings = scan({**CLEAR, 3: 400})
+    m = monitor(narrow_margin_mm=250)
+    m.update(scan(CLEAR), 0, 1)
+    assert m.update(readings, 0, 2).state is SafetyState.STOP
+    m = monitor(narrow_margin_mm=250)
+    m.update(scan(CLEAR), 0, 1)
+    status = m.update(readings, 0, 2, explain=wall_at)
+    assert status.state is SafetyState.SLOW and "narrow" not in status.reason
 
 
 def test_narrow_means_at_most_two_adjacent_sensors_with_the_rest_further() -> None:

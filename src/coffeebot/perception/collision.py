@@ -366,6 +366,10 @@ class CollisionMonitor:
             if ahead is None:  # a glance outside the corridor: not in the way
                 return _Finding(SafetyState.GO, sensor, None, "clear", self.max_speed_mm_s)
             gap = ahead
+        # A plan wall carries nothing that overhangs it: only an unexplained narrow return gets
+        # the margin for what may stand on a pole (a wall glanced by one toed-out cone while
+        # turning out reads as narrow as a pole).
+        narrow = narrow and (wall is None or bool(seen))
         # Leaving a zone needs extra clearance: the thresholds grow while we are inside it.
         margin = cfg.narrow_margin_mm if narrow else 0.0
         stop_at = self._radius(sensor.face, speed) + margin
