@@ -120,6 +120,9 @@ async def bench(runs: int, seed: int, speed: float) -> dict[str, Any]:
             if r["status"] != "delivered"
         ],
         "collisions": sum(r["collisions"] for r in rows),
+        "contacts": [
+            {"scenario": r["scenario"], **contact} for r in rows for contact in r["contacts"]
+        ],
         "stop_error_mm_p95": round(float(np.percentile(errors, 95)), 1) if errors else None,
         "mean_delivery_s": round(float(np.mean(times)), 1) if times else None,
         "mean_speed_mm_s": round(float(np.mean(speeds)), 1) if speeds else None,
@@ -149,12 +152,11 @@ def print_table(result: dict[str, Any], elapsed: float) -> None:
     print(f"| mean speed while moving | {result['mean_speed_mm_s']} mm/s | |")
     for failed in result["failed"]:
         print(f"- not delivered: {failed['scenario']}: {failed['reason']}")
-    for r in result["rows"]:
-        for c in r["contacts"]:
-            print(
-                f"- collision: {r['scenario']}: t={c['t']} s with {c['with']} at "
-                f"{c['speed_mm_s']} mm/s, floor {c['floor']} ({c['x_mm']}, {c['y_mm']})"
-            )
+    for c in result["contacts"]:
+        print(
+            f"- collision: {c['scenario']}: t={c['t']} s with {c['with']} at "
+            f"{c['speed_mm_s']} mm/s, floor {c['floor']} ({c['x_mm']}, {c['y_mm']})"
+        )
     print(f"\n(elapsed {elapsed:.1f} s)")
 
 
