@@ -20,6 +20,7 @@ from collections.abc import Iterable
 from coffeebot.board import Board
 from coffeebot.clock import Clock
 from coffeebot.config import SupervisionConfig
+from coffeebot.cpu import ACCOUNT, CpuLedger, metered_task_factory
 from coffeebot.logs import Event
 from coffeebot.messages import ESTOP, HEALTH, EStop, Health, HealthStatus
 from coffeebot.modules.base import Module, ModuleBoard, ModuleContext
@@ -27,6 +28,8 @@ from coffeebot.modules.base import Module, ModuleBoard, ModuleContext
 log = logging.getLogger(__name__)
 
 SHUTDOWN_HOOK_TIMEOUT_S = 2.0
+CPU_WINDOW_S = 5.0
+"""The machine's seconds over which each module's share of a core is taken."""
 CANCEL_REPEAT_S = 1.0
 """How long a cancelled module has to end before it is cancelled again. A cancellation can
 be lost: Python 3.11's ``asyncio.wait_for`` (which aiomqtt awaits its connection with) drops
@@ -64,6 +67,10 @@ class Daemon:
             self.states[module.name] = ModuleState(module)
         self._stop = asyncio.Event()
         self.stop_reason = ""
+        self.cpu = CpuLedger()
+        """CPU time per module and the board's (:mod:`coffeebot.cpu`)."""
+        board.cpu_account = self.cpu.board
+        self._meter: asyncio.Task[None] | None = None
 
     @property
     def modules(self) -> list[Module]:
@@ -92,6 +99,7 @@ class Daemon:
                 restarts=s.restarts,
                 detail=s.last_error,
                 publishes=_published(s.module),
+                cpu_pct=_rounded(self.cpu.last.get(s.module.name)),
             )
             for s in self.states.values()
         ]
@@ -117,6 +125,8 @@ class Daemon:
             log=logging.getLogger(f"coffeebot.module.{module.name}"),
         )
         backoff = cfg.restart_backoff_s
+        # This task's context, and so every task the module starts, books its CPU time here.
+        ACCOUNT.set(self.cpu.account(module.name))
         while True:
             state.status = HealthStatus.RUNNING
             self._report(state)
@@ -173,11 +183,22 @@ class Daemon:
                 return
 
     async def start(self) -> None:
+        loop = asyncio.get_running_loop()
+        if loop.get_task_factory() is None:
+            loop.set_task_factory(metered_task_factory)
+        self._meter = asyncio.create_task(self._measure(), name="daemon:cpu")
         for state in self.states.values():
             state.task = asyncio.create_task(
                 self._supervise(state), name=f"module:{state.module.name}"
             )
         await asyncio.sleep(0)
+
+    async def _measure(self) -> None:
+        """Each module's share of a core, renewed every ``CPU_WINDOW_S`` of the machine's
+        time (not the board clock's: the cost on this machine is the question)."""
+        while True:
+            await asyncio.sleep(CPU_WINDOW_S)
+            self.cpu.shares()
 
     async def wait_stop_requested(self) -> None:
         """Return once :meth:`request_stop` has been called (a signal, an operator, a test)."""
@@ -203,6 +224,8 @@ class Daemon:
                 await _cancel(state.task, state.module.name)
             state.status = HealthStatus.STOPPED
             self._report(state, "daemon stopped")
+        if self._meter is not None:
+            await _cancel(self._meter, "cpu meter")
 
 
 async def _cancel(task: asyncio.Task[None], name: str) -> None:
@@ -214,6 +237,10 @@ async def _cancel(task: asyncio.Task[None], name: str) -> None:
             log.warning("module %s runs on %.1f s after its cancel: again", name, CANCEL_REPEAT_S)
     with contextlib.suppress(asyncio.CancelledError):
         await task
+
+
+def _rounded(pct: float | None) -> float | None:
+    return None if pct is None else round(pct, 2)
 
 
 def _published(module: Module) -> tuple[str, ...]:

@@ -46,6 +46,10 @@ class Health(Message):
     """The topics the module publishes, in the supervisor's reports (empty for a component):
     motion knows the health of whatever writes the collision verdicts from this, not from
     a module's name."""
+    cpu_pct: float | None = None
+    """The module's CPU time as per cent of one core over the last few seconds of the
+    machine's time, in the supervisor's snapshot (:mod:`coffeebot.cpu`); None before the
+    first window."""
 
 
 # --- sensors ------------------------------------------------------------------------------

@@ -138,6 +138,10 @@ async def test_order_load_the_cup_and_watch_the_robot_drive_in_the_hallway(demo:
     await expect(inspector.locator("#map polygon.cone")).to_have_count(8)
     await expect(inspector.locator("#map ellipse.uncertainty")).to_have_count(1)
     await expect(inspector.locator("#map g.particles")).to_have_count(1)  # the default fusion
+    # CPU per module once its first 5 s window is in: the ToF poller's share of a core.
+    tof = inspector.locator("#health-table tbody tr").filter(has_text="tof").first
+    await expect(tof.locator("td").nth(3)).to_have_text(re.compile(r"^\d+\.\d$"))
+    await expect(inspector.locator("#cpu-note")).to_contain_text("the whole process")
     os.makedirs(SCREENSHOTS, exist_ok=True)
     await customer.screenshot(path=SCREENSHOTS / "order-status.png")
     await inspector.screenshot(path=SCREENSHOTS / "inspector.png")

@@ -19,6 +19,7 @@ from pydantic import BaseModel
 from coffeebot.board.stats import BoardSnapshot, SubscriberStats, TopicStats
 from coffeebot.board.topic import Delivery, Envelope, Topic
 from coffeebot.clock import Clock, MonotonicClock
+from coffeebot.cpu import CpuAccount, board_time
 from coffeebot.errors import BoardError
 
 log = logging.getLogger(__name__)
@@ -153,6 +154,8 @@ class Board:
 
     def __init__(self, topics: Iterable[Topic[Any]], clock: Clock | None = None) -> None:
         self.clock: Clock = clock or MonotonicClock()
+        self.cpu_account: CpuAccount | None = None
+        """Where publishing's CPU time is booked when metered (:mod:`coffeebot.cpu`)."""
         self._channels: dict[str, _Channel[Any]] = {}
         for topic in topics:
             if topic.name in self._channels:
@@ -180,6 +183,10 @@ class Board:
 
     def publish(self, topic: Topic[M] | str, msg: M) -> Envelope[M]:
         """Stamp ``msg`` and hand it to every subscriber. Never blocks."""
+        with board_time(self.cpu_account):
+            return self._publish(topic, msg)
+
+    def _publish(self, topic: Topic[M] | str, msg: M) -> Envelope[M]:
         channel = self._channel(topic)
         model = channel.topic.model
         if type(msg) is not model:

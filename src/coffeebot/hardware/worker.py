@@ -9,6 +9,7 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import ParamSpec, TypeVar
 
 from coffeebot.clock import Clock, SteppedClock
+from coffeebot.cpu import metered_call
 from coffeebot.lockstep import Lockstep, WorkerSlot
 
 P = ParamSpec("P")
@@ -42,7 +43,7 @@ class DeviceWorker:
 
     async def call(self, fn: Callable[P, T], *args: P.args, **kwargs: P.kwargs) -> T:
         loop = asyncio.get_running_loop()
-        job = functools.partial(fn, *args, **kwargs)
+        job = metered_call(functools.partial(fn, *args, **kwargs))
         lockstep, slot = self._lockstep, self._slot
         if lockstep is None or slot is None:
             return await loop.run_in_executor(self._executor, job)

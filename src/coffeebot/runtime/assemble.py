@@ -160,6 +160,7 @@ def assemble(
                 # The daemon is made below, from every module.
                 modules=lambda: runtime.daemon.modules,
                 health=lambda: runtime.daemon.health(),
+                cpu=lambda: runtime.daemon.cpu,
                 true_pose=true_pose,
             )
         )

@@ -125,6 +125,7 @@ def dispatcher_runtime(
                 module,
                 modules=lambda: runtime.daemon.modules,
                 health=lambda: runtime.daemon.health(),
+                cpu=lambda: runtime.daemon.cpu,
                 poses=fleet_poses(board),
             )
         )

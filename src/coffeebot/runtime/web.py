@@ -9,6 +9,7 @@ from collections.abc import Callable, Mapping, Sequence
 
 from coffeebot.board import Board
 from coffeebot.config import RobotConfig
+from coffeebot.cpu import CpuLedger
 from coffeebot.floorplan import FloorPlan
 from coffeebot.floorplan_svg import render_svg
 from coffeebot.messages import CURRENT_STATE, Health
@@ -67,6 +68,7 @@ def web_module(
     orders: Orders,
     modules: Callable[[], Sequence[Module]],
     health: Callable[[], Sequence[Health]],
+    cpu: Callable[[], CpuLedger] | None = None,
     true_pose: TruePose | None = None,
     poses: PoseSource | None = None,
 ) -> WebModule:
@@ -85,6 +87,7 @@ def web_module(
             sensors=config.tof.sensors,
             geometry=config.geometry,
             health=health,
+            cpu=cpu,
             plan=plan,
             max_range_mm=config.tof.max_range_mm,
             pickup_timeout_s=config.navigation.pickup_timeout_s,

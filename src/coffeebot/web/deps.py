@@ -17,6 +17,7 @@ from pydantic import BaseModel
 
 from coffeebot.board import BoardView, Envelope, Subscription, Topic
 from coffeebot.config import GeometryConfig, TofSensorConfig, WebConfig
+from coffeebot.cpu import CpuLedger
 from coffeebot.floorplan import FloorPlan
 from coffeebot.messages import Health
 from coffeebot.modules.base import Module
@@ -60,6 +61,8 @@ class WebDeps:
     geometry: GeometryConfig = field(default_factory=GeometryConfig)
     health: Callable[[], Sequence[Health]] | None = None
     """Module health as the supervisor sees it now (``Daemon.health``)."""
+    cpu: Callable[[], CpuLedger] | None = None
+    """CPU per module, the board's and the process's (``Daemon.cpu``)."""
     plan: FloorPlan | None = None
     """The building: hallway coordinates for the map, the tea room's floor for timelines."""
     max_range_mm: float = 4000.0

@@ -18,6 +18,7 @@ from pydantic import BaseModel
 
 from coffeebot.board import BoardSnapshot
 from coffeebot.clock import Clock
+from coffeebot.cpu import BOARD_NAME, CpuLedger
 from coffeebot.messages import ESTOP, HEALTH, ORDER_UPDATE, EStop, Health
 from coffeebot.web.alerts import (
     Alert,
@@ -88,12 +89,22 @@ class TopicValue(BaseModel):
     text: str
 
 
+class CpuFrame(BaseModel):
+    """Beside the modules' own shares: the board's, and the whole process's (the web
+    server, the recorder, and on the simulator the simulated world, are in it too)."""
+
+    board_pct: float | None
+    process_pct: float | None
+
+
 class InspectorFrame(BaseModel):
     """Everything the inspector shows at one moment (also the body of ``GET /api/board``)."""
 
     board: BoardSnapshot
     values: dict[str, TopicValue]
     health: list[Health]
+    cpu: CpuFrame | None
+    """Per cent of one core over the last few seconds (None before the first window)."""
     estop: EStop | None
     map: MapFrame
     alerts: list[Alert]
@@ -126,12 +137,23 @@ def inspector_frame(deps: WebDeps, changes: Changes, alert_list: AlertList) -> I
         board=board.snapshot(),
         values=values,
         health=health,
+        cpu=cpu_frame(deps.cpu() if deps.cpu is not None else None),
         estop=None if estop is None else estop.msg,
         map=map_frame(board, deps.poses, deps.sensors, deps.max_range_mm, deps.plan),
         alerts=alert_list.update(alerts, board.clock.now()),
         stale_after_s=deps.config.stale_after_s,
         orders_version=changes.version,
         operator_actions=bool(deps.operator_token),
+    )
+
+
+def cpu_frame(ledger: CpuLedger | None) -> CpuFrame | None:
+    if ledger is None or ledger.last_process_pct is None:
+        return None
+    board = ledger.last.get(BOARD_NAME)
+    return CpuFrame(
+        board_pct=None if board is None else round(board, 2),
+        process_pct=round(ledger.last_process_pct, 2),
     )
 
 

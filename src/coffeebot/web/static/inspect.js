@@ -90,7 +90,10 @@
   }
 
   function showHealth(frame) {
-    fill("health-table", frame.health, (h) => [[h.module], [h.status, h.status], [String(h.restarts)], [h.detail]]);
+    fill("health-table", frame.health, (h) => [[h.module], [h.status, h.status], [String(h.restarts)], [fixed(h.cpu_pct, 1)], [h.detail]]);
+    el("cpu-note").textContent = frame.cpu
+      ? `CPU, per cent of one core over the last 5 s: the board ${fixed(frame.cpu.board_pct, 1)}, the whole process ${fixed(frame.cpu.process_pct, 1)} (web server, recording and, simulated, the world included).`
+      : "CPU per module shows after the first 5 s.";
     const e = frame.estop;
     el("estop-state").textContent = e && e.engaged ? `ENGAGED (${e.source})` : "released";
     el("operator-off").hidden = frame.operator_actions;

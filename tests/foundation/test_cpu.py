@@ -1,0 +1,103 @@
+"""CPU time per module: a module that burns CPU shows up as such, in its helper tasks and its
+worker thread too, and the board's publishing is booked apart."""
+
+from __future__ import annotations
+
+import asyncio
+import time
+
+from coffeebot.board import Board
+from coffeebot.daemon import Daemon
+from coffeebot.hardware.worker import DeviceWorker
+from coffeebot.messages import ALL_TOPICS, MOTOR_COMMAND, MotorCommand
+from coffeebot.modules.base import Module, ModuleContext
+
+BURN_S = 0.05
+"""CPU seconds a busy module burns per step: far above anything an idle module costs."""
+
+
+def burn(seconds: float) -> None:
+    """Spend ``seconds`` of this thread's CPU time (not waiting: computing)."""
+    end = time.thread_time() + seconds
+    while time.thread_time() < end:
+        pass
+
+
+class Busy(Module):
+    """Burns CPU in its own task, in a helper task it starts, and in a worker thread."""
+
+    name = "busy"
+
+    def __init__(self) -> None:
+        self.worker = DeviceWorker("busy-bus")
+        self.steps = 0
+
+    async def run(self, ctx: ModuleContext) -> None:
+        helper = asyncio.create_task(self._helper())
+        try:
+            while True:
+                burn(BURN_S)
+                await self.worker.call(burn, BURN_S)
+                self.steps += 1
+                await asyncio.sleep(0)
+        finally:
+            helper.cancel()
+
+    async def _helper(self) -> None:
+        while True:
+            burn(BURN_S)
+            await asyncio.sleep(0)
+
+
+class Idle(Module):
+    name = "idle"
+
+    async def run(self, ctx: ModuleContext) -> None:
+        await asyncio.Event().wait()
+
+
+class Publisher(Module):
+    """Publishes many messages and does nothing else."""
+
+    name = "publisher"
+    outputs = (MOTOR_COMMAND,)
+
+    async def run(self, ctx: ModuleContext) -> None:
+        command = MotorCommand(left_mm_s=0, right_mm_s=0)
+        while True:
+            for _ in range(100):
+                ctx.board.publish(MOTOR_COMMAND, command)
+            await asyncio.sleep(0)
+
+
+async def test_a_module_that_burns_cpu_shows_up_with_its_helpers_and_worker_thread() -> None:
+    board = Board(ALL_TOPICS)
+    busy = Busy()
+    daemon = Daemon(board, [busy, Idle()])
+    await daemon.start()
+    while busy.steps < 4:
+        await asyncio.sleep(0.01)
+    await daemon.shutdown()
+    busy.worker.close()
+    booked = {name: account.seconds for name, account in daemon.cpu.accounts.items()}
+    # Each step: one burn in the module's task, one in its worker, about one in its helper.
+    assert booked["busy"] >= 3 * 4 * BURN_S * 0.9
+    assert booked["idle"] < BURN_S
+    shares = daemon.cpu.shares()
+    assert shares["busy"] > shares["idle"]
+    snapshot = {h.module: h.cpu_pct for h in daemon.health()}
+    assert snapshot["busy"] is not None and snapshot["busy"] > 0
+
+
+async def test_publishing_is_booked_to_the_board_not_the_publisher() -> None:
+    """With a hundred subscribers, handing each message over is nearly all the work."""
+    board = Board(ALL_TOPICS)
+    readers = [board.subscribe(MOTOR_COMMAND, name=f"reader {i}") for i in range(100)]
+    daemon = Daemon(board, [Publisher()])
+    await daemon.start()
+    for _ in range(20):
+        await asyncio.sleep(0)
+    await daemon.shutdown()
+    for reader in readers:
+        reader.close()
+    assert daemon.cpu.board.seconds > 3 * daemon.cpu.accounts["publisher"].seconds > 0
