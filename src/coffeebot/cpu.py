@@ -154,11 +154,10 @@ def metered_call(fn: Callable[[], T]) -> Callable[[], T]:
 
 class board_time:
     """Books the enclosed work to the board, off the account of the module that caused it
-    (a module's step already counts it: the board's share is moved, not counted twice).
-
-    Timed on ``perf_counter``, a tenth of ``thread_time``'s cost: publishing never waits
-    and never lets go of the GIL, so its elapsed time is its CPU time but for the rare
-    preemption, and it happens hundreds of times a second."""
+    (a module's step already counts it: the board's share is moved, not counted twice). On
+    the same clock as the step, ``thread_time``: a publication's elapsed time would include
+    the moments the machine ran something else, and take more off the module than its step
+    cost."""
 
     __slots__ = ("_board", "_start")
 
@@ -168,12 +167,12 @@ class board_time:
 
     def __enter__(self) -> None:
         if self._board is not None:
-            self._start = time.perf_counter()
+            self._start = time.thread_time()
 
     def __exit__(self, *exc: object) -> None:
         if self._board is None:
             return
-        spent = time.perf_counter() - self._start
+        spent = time.thread_time() - self._start
         self._board.add(spent)
         account = ACCOUNT.get()
         if account is not None:
