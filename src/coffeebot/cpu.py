@@ -127,6 +127,12 @@ def _book(seconds: float) -> None:
         account.add(seconds)
 
 
+def unbook(seconds: float) -> None:
+    """Take ``seconds`` off the current account: work done inside a module's step or call on
+    behalf of nobody on the robot (the simulated world answering a device)."""
+    _book(-seconds)
+
+
 def metered_task_factory(
     loop: asyncio.AbstractEventLoop, coro: Stepped, **kwargs: Any
 ) -> asyncio.Task[Any]:
@@ -143,11 +149,13 @@ def metered_call(fn: Callable[[], T]) -> Callable[[], T]:
 
     @functools.wraps(fn)
     def timed() -> T:
+        token = ACCOUNT.set(account)  # for :func:`unbook` in this thread
         start = time.thread_time()
         try:
             return fn()
         finally:
             account.add(time.thread_time() - start)
+            ACCOUNT.reset(token)
 
     return timed
 

@@ -7,6 +7,7 @@ import asyncio
 import time
 
 from coffeebot.board import Board
+from coffeebot.cpu import unbook
 from coffeebot.daemon import Daemon
 from coffeebot.hardware.worker import DeviceWorker
 from coffeebot.messages import ALL_TOPICS, MOTOR_COMMAND, MotorCommand
@@ -101,3 +102,36 @@ async def test_publishing_is_booked_to_the_board_not_the_publisher() -> None:
     for reader in readers:
         reader.close()
     assert daemon.cpu.board.seconds > 3 * daemon.cpu.accounts["publisher"].seconds > 0
+
+
+class Simulated(Module):
+    """Its worker call is all simulated hardware: the world's answer, unbooked."""
+
+    name = "simulated"
+
+    def __init__(self) -> None:
+        self.worker = DeviceWorker("simulated-bus")
+        self.calls = 0
+
+    async def run(self, ctx: ModuleContext) -> None:
+        while True:
+            await self.worker.call(self._answer)
+            self.calls += 1
+
+    @staticmethod
+    def _answer() -> None:
+        start = time.thread_time()
+        burn(BURN_S)
+        unbook(time.thread_time() - start)
+
+
+async def test_what_the_simulated_world_computes_in_a_call_is_not_the_modules() -> None:
+    board = Board(ALL_TOPICS)
+    module = Simulated()
+    daemon = Daemon(board, [module])
+    await daemon.start()
+    while module.calls < 4:
+        await asyncio.sleep(0.01)
+    await daemon.shutdown()
+    module.worker.close()
+    assert abs(daemon.cpu.accounts["simulated"].seconds) < BURN_S

@@ -22,6 +22,7 @@ from collections.abc import Iterator, Sized
 from typing import TYPE_CHECKING
 
 from coffeebot.clock import Clock, SteppedClock
+from coffeebot.cpu import unbook
 from coffeebot.lockstep import Lockstep
 from coffeebot.sim.world import World
 
@@ -53,13 +54,16 @@ class SimWorld:
     @contextlib.contextmanager
     def world_time(self) -> Iterator[World]:
         """The world under the lock, the calling thread's CPU time in it added to ``cpu_s``
-        (``thread_time`` counts no time spent waiting for the lock)."""
+        (``thread_time`` counts no time spent waiting for the lock) and taken off the module
+        whose call asked (a simulated device's answer is not the robot's cost)."""
         start = time.thread_time()
         with self.lock:
             try:
                 yield self.world
             finally:
-                self.cpu_s += time.thread_time() - start
+                spent = time.thread_time() - start
+                self.cpu_s += spent
+                unbook(spent)
 
     def world_t(self, clock_t: float) -> float:
         """The world's time at clock time ``clock_t``."""
