@@ -22,7 +22,7 @@ from collections.abc import Iterator, Sized
 from typing import TYPE_CHECKING
 
 from coffeebot.clock import Clock, SteppedClock
-from coffeebot.cpu import unbook
+from coffeebot.cpu import ACCOUNT, CpuAccount, metered_task_factory, unbook
 from coffeebot.lockstep import Lockstep
 from coffeebot.sim.world import World
 
@@ -46,6 +46,9 @@ class SimWorld:
             self.lockstep = Lockstep(clock.now)
         self.cpu_s = 0.0
         """CPU seconds spent in the world, on whichever thread asked (see :meth:`world_time`)."""
+        self.stepping = CpuAccount("simulator stepping")
+        """CPU time of the stepping task itself, the world's own time taken off: waiting for
+        the daemons to settle, handing results over, pacing. The robot has none of it."""
         self.robots: list[Simulation] = []
         """Each robot's simulation, in the order they were made (each adds itself)."""
         self._origin = clock.now()
@@ -83,6 +86,9 @@ class SimWorld:
         how soon the machine got to it."""
         if isinstance(self.clock, SteppedClock):
             self.lockstep.engage(True)
+        loop = asyncio.get_running_loop()
+        if loop.get_task_factory() is None:
+            loop.set_task_factory(metered_task_factory)
         self._task = asyncio.create_task(self.run(), name="simulated world")
         return self._task
 
@@ -95,6 +101,7 @@ class SimWorld:
         self.close()
 
     async def run(self, step_s: float = STEP_S) -> None:
+        ACCOUNT.set(self.stepping)  # this task's steps (the world's own time is taken off)
         clock = self.clock
         if not isinstance(clock, SteppedClock):
             while True:
