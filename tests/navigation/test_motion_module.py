@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 import pytest
 from helpers import CONFIG, PLAN, estimate_at
@@ -111,6 +113,19 @@ async def test_collision_stop_stops_at_once(rig: Rig) -> None:
     assert rig.speed() == 0
     command = rig.board.latest(MOTOR_COMMAND)
     assert command is not None and command.msg.brake  # the controller's stop line, not its ramp
+
+
+async def test_a_change_of_motion_state_is_logged_with_its_reason(
+    rig: Rig, caplog: pytest.LogCaptureFixture
+) -> None:
+    caplog.set_level(logging.INFO, logger="coffeebot.modules.motion")
+    await rig.run_for(1.0)
+    stop = CollisionStatus(state=SafetyState.STOP, scan_seq=2, reason="front obstacle at 300 mm")
+    await rig.run_for(0.2, stop)
+    await rig.run_for(0.2, stop)  # held: no new line while the state stays
+    said = [r.getMessage() for r in caplog.records if r.name == "coffeebot.modules.motion"]
+    assert said[-1] == "motion moving -> safety_stop: collision stop: front obstacle at 300 mm"
+    assert sum("-> safety_stop" in line for line in said) == 1
 
 
 async def test_never_faster_than_the_rated_speed(rig: Rig) -> None:

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
 import math
 from dataclasses import dataclass
 
@@ -53,6 +54,8 @@ from coffeebot.navigation.control import wheel_speeds
 from coffeebot.navigation.costmap import Footprint, LocalCostmap
 from coffeebot.navigation.motion import MotionController
 from coffeebot.navigation.openings import OpeningZones, ZoneLimit
+
+log = logging.getLogger(__name__)
 
 MIN_TURN_DPS = 1.0
 """Below this a turn on the spot under a front stop is not worth sending: stand still."""
@@ -165,6 +168,7 @@ class MotionModule(Module):
         self.collision_health: HealthStatus | None = None
         self._board: ModuleBoard | None = None
         self._stopping = False
+        self._last_state: MotionState | None = None
 
     def _stop(self, board: ModuleBoard, reason: str) -> None:
         """Stand still, braking actively: every stop here is one the safety gate (or the
@@ -278,12 +282,10 @@ class MotionModule(Module):
         if gate.stop or state is None:
             self.controller.halt()
             self._stop(ctx.board, gate.reason)
-            ctx.board.publish(
-                MOTION_STATUS,
-                self._with_detour(
-                    self.controller.safety_status(
-                        -1 if ins is None else ins.id, now, gate.reason, gate.cause
-                    )
+            self._publish_status(
+                ctx.board,
+                self.controller.safety_status(
+                    -1 if ins is None else ins.id, now, gate.reason, gate.cause
                 ),
             )
             return
@@ -318,6 +320,19 @@ class MotionModule(Module):
         """One motor command (with the reason it was allowed) and the status that goes with it."""
         left, right = wheel_speeds(speed_mm_s, yaw_rate_dps, self.config.motor.wheel_base_mm)
         board.publish(MOTOR_COMMAND, MotorCommand(left_mm_s=left, right_mm_s=right, reason=reason))
+        self._publish_status(board, status)
+
+    def _publish_status(self, board: ModuleBoard, status: MotionStatus) -> None:
+        """The status on the board; a change of state in the log too (INFO), with its detail,
+        so a run's log says when and why the robot waited, went round or was held."""
+        if status.state is not self._last_state:
+            log.info(
+                "motion %s -> %s: %s",
+                "start" if self._last_state is None else self._last_state.value,
+                status.state.value,
+                status.detail,
+            )
+            self._last_state = status.state
         board.publish(MOTION_STATUS, self._with_detour(status))
 
     def _with_detour(self, status: MotionStatus) -> MotionStatus:
