@@ -1,16 +1,18 @@
 """CPU time per module: which board task costs what, on the machine that runs it.
 
-Every asyncio task the daemon runs is created through :func:`metered_task_factory`, which
+Every asyncio task the daemon runs is created through :func:`metered_task_factory`
+(installed by :func:`meter_tasks`), which
 times each step of the task's coroutine with ``time.thread_time`` (CPU time of the event
 loop's thread, not time spent waiting) and books it to the account in the task's context.
 The supervisor sets a module's account in the module's task (:data:`ACCOUNT`), and every task
 the module starts inherits its context, so a module's helper tasks are booked to it too.
 Blocking calls a module hands to a device worker thread are timed in that thread and booked
 to the account of the task that made the call (:func:`metered_call`). The board's own work
-(publishing, handing messages to subscribers) is booked to :data:`BOARD` and taken off the
-publishing module. What runs outside any module (the web server's handlers, the recorder's
-pumps, the simulated world's stepper) is booked to nobody here; the process total says how
-much that is.
+(publishing, handing messages to subscribers) is booked to the ledger's board account and
+taken off the publishing module (:class:`board_time`); what the simulated world computes
+inside a module's call is taken off too (:func:`unbook`), and the task that steps the world
+has an account of its own. What runs outside any module (the web server's handlers, the
+recorder's pumps) is booked to nobody here; the process total says how much that is.
 
 The shares (:meth:`CpuLedger.shares`) are per cent of one core over the machine's time, not
 the board clock's: on the simulator, sped up, they say what the run costs this machine.
@@ -141,6 +143,14 @@ def metered_task_factory(
     return asyncio.Task(_Metered(coro), loop=loop, **kwargs)
 
 
+def meter_tasks() -> None:
+    """Create every task of the running loop from now on through
+    :func:`metered_task_factory`, unless the loop has a task factory already."""
+    loop = asyncio.get_running_loop()
+    if loop.get_task_factory() is None:
+        loop.set_task_factory(metered_task_factory)
+
+
 def metered_call(fn: Callable[[], T]) -> Callable[[], T]:
     """``fn`` to run in a worker thread, its CPU time booked to the caller's account."""
     account = ACCOUNT.get()
@@ -182,6 +192,4 @@ class board_time:
             return
         spent = time.thread_time() - self._start
         self._board.add(spent)
-        account = ACCOUNT.get()
-        if account is not None:
-            account.add(-spent)
+        unbook(spent)

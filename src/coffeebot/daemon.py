@@ -20,7 +20,7 @@ from collections.abc import Iterable
 from coffeebot.board import Board
 from coffeebot.clock import Clock
 from coffeebot.config import SupervisionConfig
-from coffeebot.cpu import ACCOUNT, CpuLedger, metered_task_factory
+from coffeebot.cpu import ACCOUNT, CpuLedger, meter_tasks
 from coffeebot.logs import Event
 from coffeebot.messages import ESTOP, HEALTH, EStop, Health, HealthStatus
 from coffeebot.modules.base import Module, ModuleBoard, ModuleContext
@@ -183,9 +183,7 @@ class Daemon:
                 return
 
     async def start(self) -> None:
-        loop = asyncio.get_running_loop()
-        if loop.get_task_factory() is None:
-            loop.set_task_factory(metered_task_factory)
+        meter_tasks()
         self._meter = asyncio.create_task(self._measure(), name="daemon:cpu")
         for state in self.states.values():
             state.task = asyncio.create_task(

@@ -22,7 +22,7 @@ from collections.abc import Iterator, Sized
 from typing import TYPE_CHECKING
 
 from coffeebot.clock import Clock, SteppedClock
-from coffeebot.cpu import ACCOUNT, CpuAccount, metered_task_factory, unbook
+from coffeebot.cpu import ACCOUNT, CpuAccount, meter_tasks, unbook
 from coffeebot.lockstep import Lockstep
 from coffeebot.sim.world import World
 
@@ -86,9 +86,7 @@ class SimWorld:
         how soon the machine got to it."""
         if isinstance(self.clock, SteppedClock):
             self.lockstep.engage(True)
-        loop = asyncio.get_running_loop()
-        if loop.get_task_factory() is None:
-            loop.set_task_factory(metered_task_factory)
+        meter_tasks()
         self._task = asyncio.create_task(self.run(), name="simulated world")
         return self._task
 
