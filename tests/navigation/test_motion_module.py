@@ -118,12 +118,12 @@ async def test_collision_stop_stops_at_once(rig: Rig) -> None:
 async def test_a_change_of_motion_state_is_logged_with_its_reason(
     rig: Rig, caplog: pytest.LogCaptureFixture
 ) -> None:
-    caplog.set_level(logging.INFO, logger="coffeebot.modules.motion")
+    caplog.set_level(logging.INFO, logger="coffeebot.module.motion")
     await rig.run_for(1.0)
     stop = CollisionStatus(state=SafetyState.STOP, scan_seq=2, reason="front obstacle at 300 mm")
     await rig.run_for(0.2, stop)
     await rig.run_for(0.2, stop)  # held: no new line while the state stays
-    said = [r.getMessage() for r in caplog.records if r.name == "coffeebot.modules.motion"]
+    said = [r.getMessage() for r in caplog.records if r.name == "coffeebot.module.motion"]
     assert said[-1] == "motion moving -> safety_stop: collision stop: front obstacle at 300 mm"
     assert sum("-> safety_stop" in line for line in said) == 1
 

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import logging
 import math
 from dataclasses import dataclass
 
@@ -54,8 +53,6 @@ from coffeebot.navigation.control import wheel_speeds
 from coffeebot.navigation.costmap import Footprint, LocalCostmap
 from coffeebot.navigation.motion import MotionController
 from coffeebot.navigation.openings import OpeningZones, ZoneLimit
-
-log = logging.getLogger(__name__)
 
 MIN_TURN_DPS = 1.0
 """Below this a turn on the spot under a front stop is not worth sending: stand still."""
@@ -259,14 +256,14 @@ class MotionModule(Module):
                 status = self.controller.safety_status(
                     command.status.instruction_id, now, reason, gate.cause
                 )
-                self._send(ctx.board, 0.0, command.yaw_rate_dps, reason, status)
+                self._send(ctx, 0.0, command.yaw_rate_dps, reason, status)
                 return
             if command.status.state is MotionState.BLOCKED:
                 # Held, and no turn or lane gets past: say so, so navigation can act on it.
                 reason = f"{command.status.detail}; {gate.reason}"
                 status = command.status.model_copy(update={"detail": reason})
                 self.controller.halt()
-                self._send(ctx.board, 0.0, 0.0, reason, status)
+                self._send(ctx, 0.0, 0.0, reason, status)
                 return
         if gate.stop and gate.may_creep_ahead and state is not None and ins is not None:
             # Held by something beside the body, nothing ahead: straight on keeps the gap.
@@ -277,13 +274,13 @@ class MotionModule(Module):
                 status = self.controller.safety_status(
                     command.status.instruction_id, now, reason, gate.cause
                 )
-                self._send(ctx.board, command.speed_mm_s, 0.0, reason, status)
+                self._send(ctx, command.speed_mm_s, 0.0, reason, status)
                 return
         if gate.stop or state is None:
             self.controller.halt()
             self._stop(ctx.board, gate.reason)
             self._publish_status(
-                ctx.board,
+                ctx,
                 self.controller.safety_status(
                     -1 if ins is None else ins.id, now, gate.reason, gate.cause
                 ),
@@ -299,7 +296,7 @@ class MotionModule(Module):
             reason = f"{reason}; {gate.reason}"
         if zone is not None:
             reason = f"{reason}; slow: {zone.reason}"
-        self._send(ctx.board, command.speed_mm_s, command.yaw_rate_dps, reason, command.status)
+        self._send(ctx, command.speed_mm_s, command.yaw_rate_dps, reason, command.status)
 
     def zone(self, pose: PoseEstimate, limit_mm_s: float) -> ZoneLimit | None:
         """The slow zone of an opening that caps the speed below ``limit_mm_s`` here, if any:
@@ -311,7 +308,7 @@ class MotionModule(Module):
 
     def _send(
         self,
-        board: ModuleBoard,
+        ctx: ModuleContext,
         speed_mm_s: float,
         yaw_rate_dps: float,
         reason: str,
@@ -319,21 +316,23 @@ class MotionModule(Module):
     ) -> None:
         """One motor command (with the reason it was allowed) and the status that goes with it."""
         left, right = wheel_speeds(speed_mm_s, yaw_rate_dps, self.config.motor.wheel_base_mm)
-        board.publish(MOTOR_COMMAND, MotorCommand(left_mm_s=left, right_mm_s=right, reason=reason))
-        self._publish_status(board, status)
+        ctx.board.publish(
+            MOTOR_COMMAND, MotorCommand(left_mm_s=left, right_mm_s=right, reason=reason)
+        )
+        self._publish_status(ctx, status)
 
-    def _publish_status(self, board: ModuleBoard, status: MotionStatus) -> None:
+    def _publish_status(self, ctx: ModuleContext, status: MotionStatus) -> None:
         """The status on the board; a change of state in the log too (INFO), with its detail,
         so a run's log says when and why the robot waited, went round or was held."""
         if status.state is not self._last_state:
-            log.info(
+            ctx.log.info(
                 "motion %s -> %s: %s",
                 "start" if self._last_state is None else self._last_state.value,
                 status.state.value,
                 status.detail,
             )
             self._last_state = status.state
-        board.publish(MOTION_STATUS, self._with_detour(status))
+        ctx.board.publish(MOTION_STATUS, self._with_detour(status))
 
     def _with_detour(self, status: MotionStatus) -> MotionStatus:
         """The status with the detour lane keeping is on, if any, for people to see."""
