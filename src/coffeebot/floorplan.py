@@ -292,6 +292,15 @@ class Floor(_Model):
         """Segments as an (N, 6) float array: x0, y0, x1, y1, z_bottom, z_top."""
         return np.array([s[1:] for s in self.segments], dtype=float).reshape(-1, 6)
 
+    @cached_property
+    def segment_bounds(self) -> np.ndarray:
+        """Each segment's bounding box as an (N, 4) array: x_min, y_min, x_max, y_max (a
+        cheap first test of which walls a ray of limited reach can meet)."""
+        ends = self.segment_array[:, :4]
+        return np.concatenate(
+            [np.minimum(ends[:, :2], ends[:, 2:]), np.maximum(ends[:, :2], ends[:, 2:])], axis=1
+        )
+
     def _generate_segments(self) -> Iterator[WallSegment]:
         h = self.wall_height_mm
         half = self.hallway.width_mm / 2

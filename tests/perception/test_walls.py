@@ -1,14 +1,20 @@
-"""The pose the walls are placed from, carried on by the wheels through a heading-sigma spike."""
+"""The plan's walls along rays, and the pose the walls are placed from, carried on by the
+wheels through a heading-sigma spike."""
 
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
+import numpy as np
 import pytest
 
+from coffeebot.floorplan import load_floorplan
 from coffeebot.messages import PoseEstimate
 from coffeebot.perception.tracking import Odometry2D
-from coffeebot.perception.walls import carried, trusted
+from coffeebot.perception.walls import carried, trusted, wall_ranges
+
+PLAN = load_floorplan(Path(__file__).resolve().parents[2] / "floorplans" / "cs-building.toml")
 
 
 def pose(heading_deg: float, sigma_heading_deg: float = 1.0) -> PoseEstimate:
@@ -47,3 +53,17 @@ def test_a_carried_pose_moves_along_its_own_heading_and_keeps_its_sigmas() -> No
     assert moved.heading_deg == pytest.approx(100.0)
     assert moved.sigma_heading_deg == start.sigma_heading_deg
     assert carried(pose(175.0), 0.0, 0.0, math.radians(10.0)).heading_deg == pytest.approx(-175.0)
+
+
+def test_walls_within_reach_are_where_the_whole_floor_puts_them_and_none_beyond() -> None:
+    floor = PLAN.floor(2)
+    x, y = floor.from_hallway(12000.0, 300.0)
+    angles = np.radians(np.linspace(-180.0, 180.0, 721))
+    everywhere = wall_ranges(floor, x, y, angles)
+    assert np.isfinite(everywhere).all()  # inside the hallway, every ray meets a wall
+    for reach in (700.0, 1200.0, 3000.0):
+        within = wall_ranges(floor, x, y, angles, reach)
+        close = everywhere <= reach
+        assert close.any() and not close.all()
+        assert np.array_equal(within[close], everywhere[close])  # the same, to the bit
+        assert np.isinf(within[~close]).all()

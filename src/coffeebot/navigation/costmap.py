@@ -248,8 +248,9 @@ class LocalCostmap:
         if reading.distance_mm is None or reading.distance_mm > MAX_MARK_MM:
             return False
         sx, sy, look = sensor_origin(x_mm, y_mm, heading_deg, sensor)
-        wall = wall_ranges(floor, sx, sy, math.radians(look) + self._explain).min()
-        return bool(wall <= reading.distance_mm + self.cfg.wall_margin_mm)
+        reach = reading.distance_mm + self.cfg.wall_margin_mm
+        wall = wall_ranges(floor, sx, sy, math.radians(look) + self._explain, reach).min()
+        return bool(wall <= reach)
 
     def _poles(self, readings: dict[int, RangeReading]) -> frozenset[int]:
         """The front sensors whose return is a pole: narrow (the collision monitor's rule:

@@ -28,6 +28,7 @@ import math
 from collections import deque
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
+from itertools import islice
 from typing import Literal
 
 import numpy as np
@@ -104,10 +105,17 @@ class _Track:
     def __init__(self, sensor: TofSensorConfig, capacity: int) -> None:
         self.sensor = sensor
         self.samples: deque[_Sample] = deque(maxlen=capacity)
+        self.distances: deque[float] = deque(maxlen=capacity)
+        """The samples' distances alone, for the window rule's arithmetic every scan."""
         self.rise: _Edge | None = None
+
+    def add(self, sample: _Sample) -> None:
+        self.samples.append(sample)
+        self.distances.append(sample.distance_mm)
 
     def clear(self) -> None:
         self.samples.clear()
+        self.distances.clear()
         self.rise = None
 
     def step(self, window: int, jump_mm: float, rising: bool) -> _Edge | None:
@@ -115,8 +123,8 @@ class _Track:
         at least ``jump_mm`` between the halves, located at the split with the largest step."""
         if len(self.samples) < window:
             return None
-        samples = list(self.samples)[-window:]
-        recent = np.fromiter((s.distance_mm for s in samples), float, count=window)
+        start = len(self.samples) - window
+        recent = np.fromiter(islice(self.distances, start, None), float, count=window)
         sign = 1.0 if rising else -1.0
         half = window // 2
         if sign * (recent[half:].mean() - recent[:half].mean()) < jump_mm:
@@ -130,7 +138,7 @@ class _Track:
         # largest difference of means favours splits near the window's ends).
         explained = np.where(steps > 0, splits * (window - splits) * steps**2, -1.0)
         best = int(np.argmax(explained))
-        first, last = samples[best], samples[best + 1]
+        first, last = self.samples[start + best], self.samples[start + best + 1]
         wall = first if rising else last
         return _Edge((first.along_mm + last.along_mm) / 2.0, float(steps[best]), wall.distance_mm)
 
@@ -138,6 +146,7 @@ class _Track:
         """Forget the samples taken before ``along_mm`` (in the travel direction)."""
         while self.samples and sign * (self.samples[0].along_mm - along_mm) < 0:
             self.samples.popleft()
+            self.distances.popleft()
 
 
 @dataclass(frozen=True)
@@ -222,7 +231,7 @@ class DoorDetector:
             along = frame.along(
                 sx + reach * math.cos(math.radians(look)), sy + reach * math.sin(math.radians(look))
             )
-            track.samples.append(_Sample(distance, along))
+            track.add(_Sample(distance, along))
             footprint = 2.0 * distance * tan_half_fov
             # Before the rise, the window spans what the cone can see of the door (its
             # footprint on the wall hides part of it); after, the wall's return spreads over

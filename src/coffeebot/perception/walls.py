@@ -25,9 +25,22 @@ RAYS = 15
 """Rays across the (widened) cone when asking which of them meet a wall."""
 
 
-def wall_ranges(floor: Floor, x_mm: float, y_mm: float, angles: np.ndarray) -> np.ndarray:
-    """Range from (x, y) to the first plan wall along each ray (inf where there is none)."""
+def wall_ranges(
+    floor: Floor, x_mm: float, y_mm: float, angles: np.ndarray, reach_mm: float = math.inf
+) -> np.ndarray:
+    """Range from (x, y) to the first plan wall along each ray, inf where there is none
+    within ``reach_mm`` (the walls whose bounding box lies beyond it are not cast at all:
+    the question is asked every scan, and few of a floor's walls are ever that close)."""
     seg = floor.segment_array
+    if math.isfinite(reach_mm) and seg.size:
+        box = floor.segment_bounds
+        close = (
+            (box[:, 0] <= x_mm + reach_mm)
+            & (box[:, 2] >= x_mm - reach_mm)
+            & (box[:, 1] <= y_mm + reach_mm)
+            & (box[:, 3] >= y_mm - reach_mm)
+        )
+        seg = seg[close]
     if seg.size == 0:
         return np.full(np.shape(angles), math.inf)
     dx, dy = np.cos(angles)[:, None], np.sin(angles)[:, None]
@@ -37,7 +50,7 @@ def wall_ranges(floor: Floor, x_mm: float, y_mm: float, angles: np.ndarray) -> n
     with np.errstate(divide="ignore", invalid="ignore"):
         t = (wx * ey - wy * ex) / denom
         u = (wx * dy - wy * dx) / denom
-    hit = (np.abs(denom) > 1e-9) & (t > 0) & (u >= 0) & (u <= 1)
+    hit = (np.abs(denom) > 1e-9) & (t > 0) & (u >= 0) & (u <= 1) & (t <= reach_mm)
     return np.where(hit, t, math.inf).min(axis=1)
 
 
@@ -55,7 +68,7 @@ def explained_points(
     sx, sy, look = sensor_origin(pose.x_mm, pose.y_mm, pose.heading_deg, sensor)
     half = sensor.fov_deg / 2.0 + slack_deg
     offsets = np.radians(np.linspace(-half, half, RAYS))
-    ranges = wall_ranges(floor, sx, sy, math.radians(look) + offsets)
+    ranges = wall_ranges(floor, sx, sy, math.radians(look) + offsets, distance_mm + tolerance_mm)
     near = np.abs(ranges - distance_mm) <= tolerance_mm
     if not near.any():
         return None
