@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 import pytest
@@ -235,10 +236,12 @@ def test_a_plan_wall_that_reads_narrow_gets_no_overhang_margin() -> None:
     """Turning out beside a side wall, one toed-out cone sees the wall ahead while the
     others look along the hallway: as narrow as a pole, but nothing overhangs a wall."""
 
-    def wall_at(sensor: TofSensorConfig, distance: int) -> np.ndarray | None:
-        if sensor.id != 3:
-            return None
-        return np.array([[sensor.x_mm + distance, sensor.y_mm]])
+    def wall_at(readings: Sequence[tuple[TofSensorConfig, float]]) -> dict[int, np.ndarray]:
+        return {
+            sensor.id: np.array([[sensor.x_mm + distance, sensor.y_mm]])
+            for sensor, distance in readings
+            if sensor.id == 3
+        }
 
     readings = scan({**CLEAR, 3: 400})
     m = monitor(narrow_margin_mm=250)

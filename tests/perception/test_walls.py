@@ -57,13 +57,16 @@ def test_a_carried_pose_moves_along_its_own_heading_and_keeps_its_sigmas() -> No
 
 def test_walls_within_reach_are_where_the_whole_floor_puts_them_and_none_beyond() -> None:
     floor = PLAN.floor(2)
-    x, y = floor.from_hallway(12000.0, 300.0)
-    angles = np.radians(np.linspace(-180.0, 180.0, 721))
-    everywhere = wall_ranges(floor, x, y, angles)
+    origins = np.array([floor.from_hallway(12000.0, 300.0), floor.from_hallway(30000.0, -600.0)])
+    angles = np.radians(np.linspace(-180.0, 180.0, 721))[None, :].repeat(2, axis=0)
+    everywhere = wall_ranges(floor, origins, angles)
     assert np.isfinite(everywhere).all()  # inside the hallway, every ray meets a wall
-    for reach in (700.0, 1200.0, 3000.0):
-        within = wall_ranges(floor, x, y, angles, reach)
-        close = everywhere <= reach
-        assert close.any() and not close.all()
+    for reach in (np.array([700.0, 1200.0]), np.array([3000.0, 500.0])):
+        within = wall_ranges(floor, origins, angles, reach)
+        close = everywhere <= reach[:, None]
+        assert close.any(axis=1).all() and not close.all(axis=1).any()
         assert np.array_equal(within[close], everywhere[close])  # the same, to the bit
         assert np.isinf(within[~close]).all()
+    # Each origin's rays alone give what they give together.
+    alone = wall_ranges(floor, origins[1:], angles[1:], 3000.0)
+    assert np.array_equal(alone[0], wall_ranges(floor, origins, angles, 3000.0)[1])

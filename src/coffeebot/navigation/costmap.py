@@ -188,13 +188,8 @@ class LocalCostmap:
         narrowed = max(0.0, self.half_fov_deg - heading_error_deg)
         clear_spread = np.radians(np.linspace(-narrowed, narrowed, self._rays))
         readings = {r.sensor: r for r in scan.readings}
-        walls = {
-            sensor.id: self._explained(
-                floor, sensor, readings.get(sensor.id), x_mm, y_mm, heading_deg
-            )
-            for sensor in self.sensors
-        }
-        narrow = self._poles({i: r for i, r in readings.items() if not walls.get(i)})
+        walls = self._explained(floor, readings, x_mm, y_mm, heading_deg)
+        narrow = self._poles({i: r for i, r in readings.items() if i not in walls})
         for sensor in self.sensors:
             reading = readings.get(sensor.id)
             if reading is None or not reading.healthy:
@@ -220,7 +215,7 @@ class LocalCostmap:
                 fy = sy + np.outer(np.sin(clear), steps).ravel()
                 i, j = self._cells(fx, fy)
                 self.clear_t[i, j] = now
-            if distance is None or distance > MAX_MARK_MM or walls[sensor.id]:
+            if distance is None or distance > MAX_MARK_MM or sensor.id in walls:
                 continue  # nothing there, too far to mark, or the plan's walls explain it
             angles = math.radians(look) + self._spread
             hx = sx + distance * np.cos(angles)
@@ -235,22 +230,31 @@ class LocalCostmap:
     def _explained(
         self,
         floor: Floor,
-        sensor: TofSensorConfig,
-        reading: RangeReading | None,
+        readings: dict[int, RangeReading],
         x_mm: float,
         y_mm: float,
         heading_deg: float,
-    ) -> bool:
-        """Whether the plan's walls explain a valid reading: some ray of the cone, widened
-        by ``wall_heading_tolerance_deg``, meets a wall within ``wall_margin_mm`` of it."""
-        if reading is None or not reading.healthy or reading.status is not ReadingStatus.VALID:
-            return False
-        if reading.distance_mm is None or reading.distance_mm > MAX_MARK_MM:
-            return False
-        sx, sy, look = sensor_origin(x_mm, y_mm, heading_deg, sensor)
-        reach = reading.distance_mm + self.cfg.wall_margin_mm
-        wall = wall_ranges(floor, sx, sy, math.radians(look) + self._explain, reach).min()
-        return bool(wall <= reach)
+    ) -> frozenset[int]:
+        """The sensors whose valid reading the plan's walls explain: some ray of the cone,
+        widened by ``wall_heading_tolerance_deg``, meets a wall within ``wall_margin_mm`` of
+        it (every sensor's rays cast at once)."""
+        ids, origins, angles, reach = [], [], [], []
+        for sensor in self.sensors:
+            reading = readings.get(sensor.id)
+            if reading is None or not reading.healthy or reading.status is not ReadingStatus.VALID:
+                continue
+            if reading.distance_mm is None or reading.distance_mm > MAX_MARK_MM:
+                continue
+            sx, sy, look = sensor_origin(x_mm, y_mm, heading_deg, sensor)
+            ids.append(sensor.id)
+            origins.append((sx, sy))
+            angles.append(math.radians(look) + self._explain)
+            reach.append(reading.distance_mm + self.cfg.wall_margin_mm)
+        if not ids:
+            return frozenset()
+        limit = np.array(reach, dtype=float)
+        wall = wall_ranges(floor, np.array(origins), np.array(angles), limit).min(axis=1)
+        return frozenset(i for i, explained in zip(ids, wall <= limit, strict=True) if explained)
 
     def _poles(self, readings: dict[int, RangeReading]) -> frozenset[int]:
         """The front sensors whose return is a pole: narrow (the collision monitor's rule:

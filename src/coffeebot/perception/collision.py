@@ -408,14 +408,12 @@ class CollisionMonitor:
         """Per sensor, where the plan's walls put its valid reading, if they explain it."""
         if explain is None:
             return {}
-        found = {}
-        for sensor in self.sensors.values():
-            distance = valid_distance(readings.get(sensor.id))
-            if distance is not None:
-                points = explain(sensor, distance)
-                if points is not None:
-                    found[sensor.id] = points
-        return found
+        valid = [
+            (sensor, float(distance))
+            for sensor in self.sensors.values()
+            if (distance := valid_distance(readings.get(sensor.id))) is not None
+        ]
+        return explain(valid)
 
     def _intrusion(self, speed: float) -> _Finding | None:
         """A mover predicted in the corridor ahead: stop if the robot could not stop short of

@@ -12,7 +12,7 @@ wall reads nearer than the wall) keeps its whole arc.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -26,64 +26,79 @@ RAYS = 15
 
 
 def wall_ranges(
-    floor: Floor, x_mm: float, y_mm: float, angles: np.ndarray, reach_mm: float = math.inf
+    floor: Floor, origins: np.ndarray, angles: np.ndarray, reach_mm: float | np.ndarray = math.inf
 ) -> np.ndarray:
-    """Range from (x, y) to the first plan wall along each ray, inf where there is none
-    within ``reach_mm`` (the walls whose bounding box lies beyond it are not cast at all:
-    the question is asked every scan, and few of a floor's walls are ever that close)."""
+    """Range (n, r) from each origin (n, 2) to the first plan wall along each of its rays
+    ``angles`` (n, r), inf where there is none within its ``reach_mm`` (n,). All origins are
+    cast in one go, and walls whose bounding box lies beyond every reach not at all: the
+    question is asked for every sensor every scan, and few of a floor's walls are that close."""
+    x, y = origins[:, 0, None, None], origins[:, 1, None, None]  # (n, 1, 1)
+    reach = np.broadcast_to(np.asarray(reach_mm, dtype=float), (len(origins),))
     seg = floor.segment_array
-    if math.isfinite(reach_mm) and seg.size:
+    if seg.size and len(origins) and np.isfinite(reach).all():
         box = floor.segment_bounds
         close = (
-            (box[:, 0] <= x_mm + reach_mm)
-            & (box[:, 2] >= x_mm - reach_mm)
-            & (box[:, 1] <= y_mm + reach_mm)
-            & (box[:, 3] >= y_mm - reach_mm)
+            (box[:, 0] <= (origins[:, 0] + reach).max())
+            & (box[:, 2] >= (origins[:, 0] - reach).min())
+            & (box[:, 1] <= (origins[:, 1] + reach).max())
+            & (box[:, 3] >= (origins[:, 1] - reach).min())
         )
         seg = seg[close]
     if seg.size == 0:
         return np.full(np.shape(angles), math.inf)
-    dx, dy = np.cos(angles)[:, None], np.sin(angles)[:, None]
-    ex, ey = (seg[:, 2] - seg[:, 0])[None, :], (seg[:, 3] - seg[:, 1])[None, :]
-    wx, wy = (seg[:, 0] - x_mm)[None, :], (seg[:, 1] - y_mm)[None, :]
+    dx, dy = np.cos(angles)[..., None], np.sin(angles)[..., None]  # (n, r, 1)
+    ex, ey = seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1]  # (k,)
+    wx, wy = seg[:, 0] - x, seg[:, 1] - y  # (n, 1, k)
     denom = dx * ey - dy * ex
     with np.errstate(divide="ignore", invalid="ignore"):
         t = (wx * ey - wy * ex) / denom
         u = (wx * dy - wy * dx) / denom
-    hit = (np.abs(denom) > 1e-9) & (t > 0) & (u >= 0) & (u <= 1) & (t <= reach_mm)
-    return np.where(hit, t, math.inf).min(axis=1)
+    hit = (np.abs(denom) > 1e-9) & (t > 0) & (u >= 0) & (u <= 1) & (t <= reach[:, None, None])
+    return np.where(hit, t, math.inf).min(axis=-1)
 
 
 def explained_points(
     floor: Floor,
     pose: PoseEstimate,
-    sensor: TofSensorConfig,
-    distance_mm: float,
+    readings: Sequence[tuple[TofSensorConfig, float]],
     tolerance_mm: float,
     slack_deg: float,
-) -> np.ndarray | None:
-    """Robot-frame points (k, 2) where rays of ``sensor``'s cone, widened by ``slack_deg``
-    for the pose's heading error, meet a plan wall within ``tolerance_mm`` of the reading's
-    range; None when no wall explains it."""
-    sx, sy, look = sensor_origin(pose.x_mm, pose.y_mm, pose.heading_deg, sensor)
-    half = sensor.fov_deg / 2.0 + slack_deg
-    offsets = np.radians(np.linspace(-half, half, RAYS))
-    ranges = wall_ranges(floor, sx, sy, math.radians(look) + offsets, distance_mm + tolerance_mm)
-    near = np.abs(ranges - distance_mm) <= tolerance_mm
-    if not near.any():
-        return None
-    bearing = math.radians(sensor.yaw_deg) + offsets[near]
-    return np.stack(
-        [
-            sensor.x_mm + ranges[near] * np.cos(bearing),
-            sensor.y_mm + ranges[near] * np.sin(bearing),
-        ],
-        axis=1,
-    )
+) -> dict[int, np.ndarray]:
+    """For each (sensor, distance) reading whose sensor's cone, widened by ``slack_deg`` for
+    the pose's heading error, meets a plan wall within ``tolerance_mm`` of the distance
+    along some of its rays: the robot-frame points (k, 2) where they do, by sensor id."""
+    if not readings:
+        return {}
+    spreads: dict[float, np.ndarray] = {}
+    origins, angles, offsets = [], [], []
+    for sensor, _ in readings:
+        sx, sy, look = sensor_origin(pose.x_mm, pose.y_mm, pose.heading_deg, sensor)
+        half = sensor.fov_deg / 2.0 + slack_deg
+        if half not in spreads:
+            spreads[half] = np.radians(np.linspace(-half, half, RAYS))
+        origins.append((sx, sy))
+        angles.append(math.radians(look) + spreads[half])
+        offsets.append(spreads[half])
+    distances = np.array([distance for _, distance in readings], dtype=float)
+    ranges = wall_ranges(floor, np.array(origins), np.array(angles), distances + tolerance_mm)
+    near = np.abs(ranges - distances[:, None]) <= tolerance_mm
+    found = {}
+    for (sensor, _), row, rays, spread in zip(readings, ranges, near, offsets, strict=True):
+        if rays.any():
+            bearing = math.radians(sensor.yaw_deg) + spread[rays]
+            found[sensor.id] = np.stack(
+                [
+                    sensor.x_mm + row[rays] * np.cos(bearing),
+                    sensor.y_mm + row[rays] * np.sin(bearing),
+                ],
+                axis=1,
+            )
+    return found
 
 
-Explainer = Callable[[TofSensorConfig, int], "np.ndarray | None"]
-"""Where the plan's walls put a sensor's reading (robot-frame points), or None."""
+Explainer = Callable[[Sequence[tuple[TofSensorConfig, float]]], dict[int, np.ndarray]]
+"""Where the plan's walls put the readings they explain of those given as (sensor,
+distance): robot-frame points by sensor id."""
 
 MAX_HEADING_SIGMA_DEG = 5.0
 """A pose heading less certain than this places no reading on the plan's walls."""
@@ -117,7 +132,7 @@ def explainer(floor: Floor, pose: PoseEstimate, tolerance_mm: float) -> Explaine
         return None
     slack = 2.0 * pose.sigma_heading_deg
 
-    def explain(sensor: TofSensorConfig, distance: int) -> np.ndarray | None:
-        return explained_points(floor, pose, sensor, distance, tolerance_mm, slack)
+    def explain(readings: Sequence[tuple[TofSensorConfig, float]]) -> dict[int, np.ndarray]:
+        return explained_points(floor, pose, readings, tolerance_mm, slack)
 
     return explain
