@@ -9,8 +9,9 @@ the module starts inherits its context, so a module's helper tasks are booked to
 Blocking calls a module hands to a device worker thread are timed in that thread and booked
 to the account of the task that made the call (:func:`metered_call`). The board's own work
 (publishing, handing messages to subscribers) is booked to the ledger's board account and
-taken off the publishing module (:class:`board_time`); what the simulated world computes
-inside a module's call is taken off too (:func:`unbook`), and the task that steps the world
+taken off the publishing module (:class:`board_time`); what the simulated hardware computes
+inside a module's call (a chip's registers, the world behind them) is taken off too
+(:func:`unbook`, through ``SimWorld.simulated``), and the task that steps the world
 has an account of its own. What runs outside any module (the web server's handlers, the
 recorder's pumps) is booked to nobody here; the process total says how much that is.
 

@@ -1,17 +1,24 @@
 """CPU time per module: a module that burns CPU shows up as such, in its helper tasks and its
-worker thread too, and the board's publishing is booked apart."""
+worker thread too, the board's publishing is booked apart, and so is the simulated hardware."""
 
 from __future__ import annotations
 
 import asyncio
 import time
+from pathlib import Path
 
 from coffeebot.board import Board
+from coffeebot.clock import MonotonicClock
+from coffeebot.config import load_robot_config
 from coffeebot.cpu import unbook
 from coffeebot.daemon import Daemon
+from coffeebot.floorplan import load_floorplan
 from coffeebot.hardware.worker import DeviceWorker
 from coffeebot.messages import ALL_TOPICS, MOTOR_COMMAND, MotorCommand
 from coffeebot.modules.base import Module, ModuleContext
+from coffeebot.sim.i2c import SimI2CBus
+from coffeebot.sim.stepper import SimWorld
+from coffeebot.sim.world import Pose, RobotSpec, World
 
 BURN_S = 0.05
 """CPU seconds a busy module burns per step: far above anything an idle module costs."""
@@ -135,3 +142,57 @@ async def test_what_the_simulated_world_computes_in_a_call_is_not_the_modules() 
     await daemon.shutdown()
     module.worker.close()
     assert abs(daemon.cpu.accounts["simulated"].seconds) < BURN_S
+
+
+class BurningChip:
+    """A simulated chip whose registers cost CPU, and whose answer asks the world too."""
+
+    address = 0x29
+
+    def __init__(self, shared: SimWorld) -> None:
+        self.shared = shared
+
+    def write(self, data: bytes) -> None:
+        burn(BURN_S)
+        with self.shared.world_time():
+            burn(BURN_S)
+
+    def read(self, length: int) -> bytes:
+        return bytes(length)
+
+
+class ChipReader(Module):
+    """Writes to a simulated chip in its worker thread, as the ToF poller does."""
+
+    name = "reader"
+
+    def __init__(self, bus: SimI2CBus) -> None:
+        self.worker = DeviceWorker("reader-bus")
+        self.bus = bus
+        self.calls = 0
+
+    async def run(self, ctx: ModuleContext) -> None:
+        while True:
+            await self.worker.call(self.bus.write_byte, BurningChip.address, 1)
+            self.calls += 1
+
+
+async def test_a_simulated_chips_work_is_the_worlds_and_counted_once() -> None:
+    root = Path(__file__).resolve().parents[2]
+    config = load_robot_config(root / "boards" / "coffeebot-v1.toml")
+    plan = load_floorplan(root / "floorplans" / "cs-building.toml")
+    shared = SimWorld(
+        World(plan, RobotSpec.from_config(config), floor=2, pose=Pose(2000, 0, 0)), MonotonicClock()
+    )
+    bus = SimI2CBus(shared.simulated)
+    bus.attach(BurningChip(shared))
+    module = ChipReader(bus)
+    daemon = Daemon(Board(ALL_TOPICS), [module])
+    await daemon.start()
+    while module.calls < 4:
+        await asyncio.sleep(0.01)
+    await daemon.shutdown()
+    module.worker.close()
+    assert abs(daemon.cpu.accounts["reader"].seconds) < BURN_S
+    # Each call burned twice BURN_S in the chip, once of it inside the world: not counted twice.
+    assert 2 * BURN_S * module.calls <= shared.cpu_s < 2 * BURN_S * (module.calls + 1) + BURN_S

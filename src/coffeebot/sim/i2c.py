@@ -21,6 +21,7 @@ import errno
 import os
 import time
 from collections.abc import Callable, Iterable
+from contextlib import AbstractContextManager, nullcontext
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -72,10 +73,15 @@ class SimI2CBus:
     """The upstream bus. Muxes attached to it route addresses they do not own to the devices
     on their enabled channels."""
 
-    def __init__(self) -> None:
+    def __init__(
+        self, simulating: Callable[[], AbstractContextManager[object]] = nullcontext
+    ) -> None:
+        """``simulating``: entered around each transaction, so whoever counts CPU time can
+        tell the simulated chips' work from the driver's (:meth:`SimWorld.simulated`)."""
         self.devices: dict[int, SimI2CDevice] = {}
         self.muxes: list[SimTCA9548A] = []
         self.timeout = False
+        self._simulating = simulating
 
     def attach(self, device: SimI2CDevice) -> None:
         self.devices[device.address] = device
@@ -83,19 +89,22 @@ class SimI2CBus:
             self.muxes.append(device)
 
     def i2c_rdwr(self, *msgs: i2c_msg) -> None:
-        for msg in msgs:
-            device = self._route(msg.addr)
-            if msg.flags & I2C_M_RD:
-                data = device.read(msg.len)
-                ctypes.memmove(msg.buf, data, msg.len)
-            else:
-                device.write(bytes(msg))
+        with self._simulating():
+            for msg in msgs:
+                device = self._route(msg.addr)
+                if msg.flags & I2C_M_RD:
+                    data = device.read(msg.len)
+                    ctypes.memmove(msg.buf, data, msg.len)
+                else:
+                    device.write(bytes(msg))
 
     def write_byte(self, i2c_addr: int, value: int) -> None:
-        self._route(i2c_addr).write(bytes([value]))
+        with self._simulating():
+            self._route(i2c_addr).write(bytes([value]))
 
     def read_byte(self, i2c_addr: int) -> int:
-        return self._route(i2c_addr).read(1)[0]
+        with self._simulating():
+            return self._route(i2c_addr).read(1)[0]
 
     def close(self) -> None:
         """Nothing to release; present because smbus2.SMBus has it."""
@@ -390,8 +399,9 @@ def make_tof_hardware(
     clock: Callable[[], float] = time.monotonic,
     noise: RangingNoise | None = None,
     seed: int = 0,
+    simulating: Callable[[], AbstractContextManager[object]] = nullcontext,
 ) -> SimTofHardware:
-    bus = SimI2CBus()
+    bus = SimI2CBus(simulating)
     mux = SimTCA9548A(mux_address)
     bus.attach(mux)
     sensors = {}

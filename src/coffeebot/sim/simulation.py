@@ -128,6 +128,7 @@ class Simulation:
             clock=clock.now,
             noise=world.noise,
             seed=world.seed + 1000 * len(shared.robots),
+            simulating=shared.simulated,
         )
         lockstep = shared.lockstep
         prefix = f"{robot.name}/" if shared.robots else ""

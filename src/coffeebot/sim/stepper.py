@@ -45,7 +45,9 @@ class SimWorld:
         else:  # the machine's clock (a benchmark of the daemon's own timing): never engaged
             self.lockstep = Lockstep(clock.now)
         self.cpu_s = 0.0
-        """CPU seconds spent in the world, on whichever thread asked (see :meth:`world_time`)."""
+        """CPU seconds spent in the world and the simulated devices, on whichever thread
+        asked (see :meth:`simulated`)."""
+        self._local = threading.local()
         self.stepping = CpuAccount("simulator stepping")
         """CPU time of the stepping task itself, the world's own time taken off: waiting for
         the daemons to settle, handing results over, pacing. The robot has none of it."""
@@ -55,18 +57,29 @@ class SimWorld:
         """The world's t = 0 on the clock: the robots are switched on (self-checks included)."""
 
     @contextlib.contextmanager
-    def world_time(self) -> Iterator[World]:
-        """The world under the lock, the calling thread's CPU time in it added to ``cpu_s``
-        (``thread_time`` counts no time spent waiting for the lock) and taken off the module
-        whose call asked (a simulated device's answer is not the robot's cost)."""
+    def simulated(self) -> Iterator[None]:
+        """The calling thread's CPU time in the block added to ``cpu_s`` and taken off the
+        module whose call it is: a simulated device answering (its registers, the world
+        behind them) is not the robot's cost. Nested blocks count once."""
+        depth = getattr(self._local, "depth", 0)
+        self._local.depth = depth + 1
         start = time.thread_time()
-        with self.lock:
-            try:
-                yield self.world
-            finally:
+        try:
+            yield
+        finally:
+            self._local.depth = depth
+            if depth == 0:
                 spent = time.thread_time() - start
-                self.cpu_s += spent
+                with self.lock:
+                    self.cpu_s += spent
                 unbook(spent)
+
+    @contextlib.contextmanager
+    def world_time(self) -> Iterator[World]:
+        """The world under the lock, its CPU time booked as :meth:`simulated` (``thread_time``
+        counts no time spent waiting for the lock)."""
+        with self.simulated(), self.lock:
+            yield self.world
 
     def world_t(self, clock_t: float) -> float:
         """The world's time at clock time ``clock_t``."""
