@@ -113,6 +113,9 @@ class LocalCostmap:
         not only at the rays either side of it."""
         self._spread = np.radians(np.linspace(-half_fov_deg, half_fov_deg, self._rays))
         """Ray offsets across a cone, for marking."""
+        self._step = self.res / 2.0
+        self._steps = np.arange(0.0, MAX_MARK_MM, self._step)
+        """Distances along a ray where it clears, the longest ray's (shorter ones a prefix)."""
         widest = half_fov_deg + cfg.wall_heading_tolerance_deg
         self._explain = np.radians(np.linspace(-widest, widest, EXPLAIN_RAYS))
         """Ray offsets across the widened cone, for asking whether a wall explains a reading."""
@@ -163,11 +166,13 @@ class LocalCostmap:
             grid[...] = moved
         self.origin = (self.origin[0] + shift_i * self.res, self.origin[1] + shift_j * self.res)
 
-    def _cells(self, xs: np.ndarray, ys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _cells(self, xs: np.ndarray, ys: np.ndarray, *along: np.ndarray) -> tuple[np.ndarray, ...]:
+        """The grid cells (i, j) of the points inside the window, and of each array ``along``
+        the points the entries of those inside."""
         i = np.floor((xs - self.origin[0]) / self.res).astype(int)
         j = np.floor((ys - self.origin[1]) / self.res).astype(int)
         inside = (i >= 0) & (i < self.n) & (j >= 0) & (j < self.n)
-        return i[inside], j[inside]
+        return i[inside], j[inside], *(a[inside] for a in along)
 
     # --- marking and clearing --------------------------------------------------------------
 
@@ -190,6 +195,14 @@ class LocalCostmap:
         readings = {r.sensor: r for r in scan.readings}
         walls = self._explained(floor, readings, x_mm, y_mm, heading_deg)
         narrow = self._poles({i: r for i, r in readings.items() if i not in walls})
+        # Every cone is cleared and then every arc marked, each in one go: a cell's state
+        # after the update is the same in any order (a cell both cleared and marked now is
+        # not occupied), and numpy's cost is in the calls, not the points.
+        clear_x: list[np.ndarray] = []
+        clear_y: list[np.ndarray] = []
+        mark_x: list[np.ndarray] = []
+        mark_y: list[np.ndarray] = []
+        mark_pole: list[np.ndarray] = []
         for sensor in self.sensors:
             reading = readings.get(sensor.id)
             if reading is None or not reading.healthy:
@@ -209,22 +222,26 @@ class LocalCostmap:
             sx, sy, look = sensor_origin(x_mm, y_mm, heading_deg, sensor)
             free = MAX_MARK_MM if distance is None else min(distance, MAX_MARK_MM) - self.res
             if free > 0:
-                steps = np.arange(0.0, free, self.res / 2.0)
+                steps = self._steps[: math.ceil(free / self._step)]
                 clear = math.radians(look) + clear_spread
-                fx = sx + np.outer(np.cos(clear), steps).ravel()
-                fy = sy + np.outer(np.sin(clear), steps).ravel()
-                i, j = self._cells(fx, fy)
-                self.clear_t[i, j] = now
+                clear_x.append(sx + np.outer(np.cos(clear), steps).ravel())
+                clear_y.append(sy + np.outer(np.sin(clear), steps).ravel())
             if distance is None or distance > MAX_MARK_MM or sensor.id in walls:
                 continue  # nothing there, too far to mark, or the plan's walls explain it
             angles = math.radians(look) + self._spread
-            hx = sx + distance * np.cos(angles)
-            hy = sy + distance * np.sin(angles)
-            i, j = self._cells(hx, hy)
+            mark_x.append(sx + distance * np.cos(angles))
+            mark_y.append(sy + distance * np.sin(angles))
+            mark_pole.append(np.full(len(angles), sensor.id in narrow))
+        if clear_x:
+            i, j = self._cells(np.concatenate(clear_x), np.concatenate(clear_y))
+            self.clear_t[i, j] = now
+        if mark_x:
+            i, j, pole = self._cells(
+                np.concatenate(mark_x), np.concatenate(mark_y), np.concatenate(mark_pole)
+            )
             fresh = ~self._occupied_at(i, j, now)
             self.since_t[i[fresh], j[fresh]] = now
-            if sensor.id in narrow:
-                self.pole_t[i, j] = now
+            self.pole_t[i[pole], j[pole]] = now
             self.hit_t[i, j] = now
 
     def _explained(
