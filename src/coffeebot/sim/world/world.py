@@ -104,6 +104,7 @@ class World:
         self.noise = RangingNoise() if noise is None else noise
         self.uwb_model = uwb or UwbModel()
         self._static: dict[int, Surfaces] = {}
+        self._scenes: dict[int, tuple[tuple[object, ...], Surfaces]] = {}
         self.t_s = 0.0
         self.obstacle_start_s: list[float | None] = [
             None if o.trigger_mm is not None else 0.0 for o in self.obstacles
@@ -138,15 +139,28 @@ class World:
         """Everything on floor ``level`` now, or at an earlier world time ``t_s`` (the
         obstacles are functions of their clocks; the elevator and the robots are as they
         are now), the robots but ``without`` included."""
-        surfaces = self._static_surfaces(level)
-        if self.elevator is not None:
-            surfaces = surfaces + self.elevator.surfaces(level)
-        for i, obstacle in enumerate(self.obstacles):
-            if obstacle.timed and obstacle.floor == level:
-                surfaces = surfaces + self.obstacle_at(i, t_s)
+        surfaces = self._scene(level, t_s)
         for robot in self.robots:
             if robot is not without and robot.floor_level == level:
                 surfaces = surfaces + robot.outline()
+        return surfaces
+
+    def _scene(self, level: int, t_s: float | None) -> Surfaces:
+        """Floor ``level`` without the robots: the plan, the elevator, the obstacles. Kept
+        while nothing in it can have changed (every robot asks for it every physics step)."""
+        lift = None if self.elevator is None else self.elevator.surfaces(level)
+        # The elevator keeps each of its outlines: the same object while its doors stay.
+        key = (self.t_s, id(lift), tuple(self.obstacle_start_s))
+        if t_s is None and self._scenes.get(level, (None,))[0] == key:
+            return self._scenes[level][1]
+        surfaces = self._static_surfaces(level)
+        if lift is not None:
+            surfaces = surfaces + lift
+        for i, obstacle in enumerate(self.obstacles):
+            if obstacle.timed and obstacle.floor == level:
+                surfaces = surfaces + self.obstacle_at(i, t_s)
+        if t_s is None:
+            self._scenes[level] = (key, surfaces)
         return surfaces
 
     def obstacle_clock_s(self, index: int, t_s: float | None = None) -> float | None:
