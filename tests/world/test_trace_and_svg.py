@@ -72,7 +72,8 @@ def test_svg_has_every_room_zone_and_anchor(cs_building: FloorPlan) -> None:
         p for p in root.iter("{http://www.w3.org/2000/svg}polygon") if p.get("class") == "zone"
     ]
     assert len(zones) == sum(len(f.angle_zones) for f in cs_building.floors)
-    anchors = [c for c in root.iter("{http://www.w3.org/2000/svg}circle")]
+    circles = list(root.iter("{http://www.w3.org/2000/svg}circle"))
+    anchors = [c for c in circles if c.get("class") == "anchor"]
     assert len(anchors) == sum(len(f.anchors) for f in cs_building.floors)
 
 
@@ -129,3 +130,59 @@ def test_each_floor_has_a_frame_that_maps_plan_mm_into_the_picture(cs_building: 
         assert "scale(1 -1)" in frame.get("transform", "")
         x, y = floor.from_hallway(0, -floor.hallway.width_mm / 2)
         assert (x + tx, ty - y) == pytest.approx(corner, abs=0.5)
+
+
+def _translate(group: ET.Element) -> tuple[float, float]:
+    found = re.match(r"translate\(([-\d.e]+) ([-\d.e]+)\)", group.get("transform", ""))
+    assert found is not None
+    return float(found.group(1)), float(found.group(2))
+
+
+def test_floors_share_one_frame_with_the_shaft_and_each_hallways_way_marked(
+    cs_building: FloorPlan,
+) -> None:
+    svg = ET.fromstring(render_svg(cs_building))
+    ns = {"svg": "http://www.w3.org/2000/svg"}
+    frames = {
+        f.level: _translate(svg.find(f".//svg:g[@id='frame-{f.level}']", ns))  # type: ignore[arg-type]
+        for f in cs_building.floors
+    }
+    # One frame: the same x offset on every floor, and each floor's hallway drawn dashed in
+    # the other's panel exactly where it is in its own, but for the panels' offset.
+    assert len({tx for tx, _ in frames.values()}) == 1
+
+    def points(polygon: ET.Element | None) -> list[float]:
+        assert polygon is not None
+        return [float(v) for p in polygon.get("points", "").split() for v in p.split(",")]
+
+    (low, _), (high, _) = sorted(frames.items(), key=lambda kv: kv[0])[:2]
+    own = points(svg.find(f".//svg:g[@id='floor-{high}']/svg:polygon[@class='hallway']", ns))
+    seen = points(svg.find(f".//svg:g[@id='floor-{low}']/svg:polygon[@class='other-floor']", ns))
+    offset = frames[high][1] - frames[low][1]
+    shifted = [v + offset if k % 2 else v for k, v in enumerate(seen)]
+    assert shifted == pytest.approx(own, abs=1.0)
+    shaft = svg.find("svg:line[@class='shaft']", ns)
+    assert shaft is not None
+    for floor in cs_building.floors:
+        group = svg.find(f".//svg:g[@id='floor-{floor.level}']", ns)
+        assert group is not None
+        # The other floors' hallways drawn beneath this one's.
+        assert len(group.findall("svg:polygon[@class='other-floor']", ns)) == 1
+        # The car's door on the shaft line (the loader holds the floors' cars together).
+        car = group.find("svg:rect[@class='car']", ns)
+        assert car is not None
+        centre = float(car.get("x", "")) + float(car.get("width", "")) / 2
+        assert centre == pytest.approx(float(shaft.get("x1", "")), abs=100)
+        # Where the hallway starts, and which way it runs: the arrow's tip at its far end.
+        tx, ty = frames[floor.level]
+        start = group.find("svg:circle[@class='start']", ns)
+        assert start is not None
+        x0, y0 = floor.from_hallway(0, 0)
+        assert (float(start.get("cx", "")), float(start.get("cy", ""))) == pytest.approx(
+            (x0 + tx, ty - y0), abs=0.5
+        )
+        arrow = group.find("svg:polygon[@class='direction']", ns)
+        assert arrow is not None
+        tip = [float(v) for v in arrow.get("points", "").split()[0].split(",")]
+        x1, y1 = floor.from_hallway(floor.hallway.length_mm - 300, 0)
+        assert tip == pytest.approx([x1 + tx, ty - y1], abs=0.5)
