@@ -430,7 +430,22 @@ class DoorConfig(Section):
         1200.0,
         gt=0,
         le=LENGTH_MM,
-        description="a detection further than this from a plan door is unmatched",
+        description="a detection further than this from a plan door is unmatched, however "
+        "uncertain the pose",
+    )
+    match_sigmas: float = Field(
+        4.0,
+        gt=0,
+        le=100,
+        description="a detection is matched to a plan door within this many sigmas of the "
+        "pose along the hallway and of the detection itself",
+    )
+    centre_sigma_mm: float = Field(
+        50.0,
+        gt=0,
+        le=DISTANCE_MM,
+        description="1-sigma of a detected door centre along the hallway (bench/accuracy.py: "
+        "p95 ~40 mm)",
     )
     max_feature_mm: float = Field(
         2500.0,

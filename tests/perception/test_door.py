@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from perception_helpers import hallway_floor, pose, robot, scan, scan_at
@@ -22,6 +24,7 @@ def drive(
     speed: float,
     y: float = -300.0,
     pose_offset: float = 0.0,
+    pose_sigma_mm: float = 30.0,
     noise_mm: float = 0.0,
     target: str | None = None,
     seed: int = 1,
@@ -34,7 +37,7 @@ def drive(
     events: list[DoorEvent] = []
     for k, x in enumerate(np.arange(start, end, step)):
         s = scan_at(floor, float(x), y, heading, noise_mm=noise_mm, rng=rng)
-        believed = pose(float(x) + pose_offset, y, heading)
+        believed = pose(float(x) + pose_offset, y, heading, sigma_mm=pose_sigma_mm)
         events += detector.update(s, k, believed, floor, speed, RATE_HZ)
     return events
 
@@ -82,11 +85,47 @@ def test_plain_wall_with_noise_gives_no_false_alarms() -> None:
 
 def test_along_hallway_correction_from_the_matched_door() -> None:
     floor = hallway_floor()
-    # The pose believes the robot is 300 mm further along than it is.
-    events = drive(floor, start=4500, end=7500, speed=300, pose_offset=300.0)
+    # The pose believes the robot is 300 mm further along than it is, and says it may be.
+    events = drive(floor, start=4500, end=7500, speed=300, pose_offset=300.0, pose_sigma_mm=150)
     assert len(events) == 1 and events[0].room == "102"
     assert events[0].along_correction_mm == pytest.approx(-300, abs=20)
     assert (events[0].plan_x_mm, events[0].plan_y_mm) == (6000, -850)
+
+
+def test_a_door_many_sigmas_from_where_the_pose_puts_it_is_not_matched() -> None:
+    floor = hallway_floor()
+    # A pose 1173 mm off that claims 30 mm: the recess it passes is not taken for door 102
+    # (a fixed 1200 mm gate took a false door for one 1173 mm away).
+    events = drive(floor, start=4500, end=7500, speed=300, pose_offset=1173.0)
+    assert [(e.kind, e.room, e.along_correction_mm) for e in events] == [("door", None, None)]
+    detector = DoorDetector(robot().tof.sensors, DoorConfig())
+    assert detector.gate_mm(pose(6000, -300, 0.0, sigma_mm=30), floor) == pytest.approx(
+        4 * math.hypot(30, 50)
+    )
+    assert detector.gate_mm(pose(6000, -300, 0.0, sigma_mm=2000), floor) == 1200
+
+
+def test_a_detection_two_doors_could_explain_is_refused() -> None:
+    # Doors 2000 mm apart; the pose 900 mm off and unsure enough (400 mm) that both doors
+    # lie within its gate of the first one it passes: neither is guessed. The second door,
+    # passed 900 mm off too, has only itself within the gate and is matched.
+    close = parse_floorplan(
+        {
+            "floors": [
+                {
+                    "level": 1,
+                    "hallway": {"start": [0, 0], "end": [20000, 0], "width_mm": 1700},
+                    "doors": [
+                        {"room": "102", "side": "right", "at_mm": 6000},
+                        {"room": "102a", "side": "right", "at_mm": 4000},
+                        {"room": "tea", "side": "left", "at_mm": 15000, "kind": "tea_room"},
+                    ],
+                }
+            ]
+        }
+    ).floor(1)
+    events = drive(close, start=2500, end=7500, speed=300, pose_offset=900.0, pose_sigma_mm=400)
+    assert [e.room for e in events] == [None, "102"]
 
 
 def test_opening_is_not_a_door() -> None:

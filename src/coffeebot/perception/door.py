@@ -183,6 +183,8 @@ class DoorDetector:
         }
         self._last_span: dict[Side, tuple[float, float]] = {}
         self._pending: dict[Side, _Passed] = {}
+        self._gate_mm = cfg.match_gate_mm
+        """How far from a plan door a detection may be to be taken for it (:meth:`gate_mm`)."""
 
     def reset(self) -> None:
         for track in self.tracks.values():
@@ -217,6 +219,7 @@ class DoorDetector:
         if abs(speed_mm_s) < cfg.min_speed_mm_s:
             return []
         frame = TravelFrame.for_heading(floor, pose.heading_deg)
+        self._gate_mm = self.gate_mm(pose, floor)
         tan_half_fov = math.tan(math.radians(self.half_fov_deg))
         sign = -1.0 if frame.reversed else 1.0
         readings = {r.sensor: r for r in scan.readings}
@@ -343,12 +346,20 @@ class DoorDetector:
             )
         ]
 
+    def gate_mm(self, pose: PoseEstimate, floor: Floor) -> float:
+        """How far a detected centre may lie from a plan door's to be taken for it:
+        ``match_sigmas`` times the pose's and the detection's sigmas along the hallway
+        together, at most ``match_gate_mm``. A fixed gate wider than the spacing of real
+        doors matches a false detection to a door a metre away; with a good pose that is
+        many sigmas off, and refused."""
+        heading = math.radians(floor.hallway.heading_deg)
+        along = math.hypot(math.cos(heading) * pose.sigma_x_mm, math.sin(heading) * pose.sigma_y_mm)
+        sigma = math.hypot(along, self.cfg.centre_sigma_mm)
+        return min(self.cfg.match_gate_mm, self.cfg.match_sigmas * sigma)
+
     def _match(self, floor: Floor, side: Side, centre: float) -> Door | Opening | None:
-        """The plan feature on ``side`` whose centre is nearest ``centre`` (within the gate)."""
-        best: Door | Opening | None = None
-        best_gap = self.cfg.match_gate_mm
-        for feature in floor.features(side):
-            gap = abs(feature.at_mm - centre)
-            if gap <= best_gap:
-                best, best_gap = feature, gap
-        return best
+        """The plan feature on ``side`` within the gate of ``centre`` (:meth:`gate_mm`), if
+        there is exactly one: with two, the pose is too unsure for the doors' spacing to tell
+        which one was passed, and the detection is refused rather than guessed."""
+        within = [f for f in floor.features(side) if abs(f.at_mm - centre) <= self._gate_mm]
+        return within[0] if len(within) == 1 else None
