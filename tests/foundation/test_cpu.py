@@ -132,15 +132,20 @@ class Simulated(Module):
         unbook(time.thread_time() - start)
 
 
-async def test_what_the_simulated_world_computes_in_a_call_is_not_the_modules() -> None:
-    board = Board(ALL_TOPICS)
-    module = Simulated()
-    daemon = Daemon(board, [module])
+async def after_calls(module: Simulated | ChipReader, calls: int = 4) -> Daemon:
+    """The daemon of ``module`` alone, shut down once the module made ``calls`` worker calls."""
+    daemon = Daemon(Board(ALL_TOPICS), [module])
     await daemon.start()
-    while module.calls < 4:
+    while module.calls < calls:
         await asyncio.sleep(0.01)
     await daemon.shutdown()
     module.worker.close()
+    return daemon
+
+
+async def test_what_the_simulated_world_computes_in_a_call_is_not_the_modules() -> None:
+    module = Simulated()
+    daemon = await after_calls(module)
     assert abs(daemon.cpu.accounts["simulated"].seconds) < BURN_S
 
 
@@ -187,12 +192,7 @@ async def test_a_simulated_chips_work_is_the_worlds_and_counted_once() -> None:
     bus = SimI2CBus(shared.simulated)
     bus.attach(BurningChip(shared))
     module = ChipReader(bus)
-    daemon = Daemon(Board(ALL_TOPICS), [module])
-    await daemon.start()
-    while module.calls < 4:
-        await asyncio.sleep(0.01)
-    await daemon.shutdown()
-    module.worker.close()
+    daemon = await after_calls(module)
     assert abs(daemon.cpu.accounts["reader"].seconds) < BURN_S
     # Each call burned twice BURN_S in the chip, once of it inside the world: not counted twice.
     assert 2 * BURN_S * module.calls <= shared.cpu_s < 2 * BURN_S * (module.calls + 1) + BURN_S
