@@ -50,8 +50,9 @@ def scan(
 # --- a small test building and a centre-ray caster over it --------------------------------
 
 
-def hallway_floor(angle_zones: list[dict] | None = None) -> Floor:
-    """A 20 m hallway along +x: doors on both sides, an opening, two angle zones."""
+def hallway_floor(angle_zones: list[dict] | None = None, doors: list[dict] | None = None) -> Floor:
+    """A 20 m hallway along +x: doors on both sides, an opening, two angle zones; or the
+    given ``doors`` (the tea room among them) and ``angle_zones`` instead."""
     plan = parse_floorplan(
         {
             "name": "test",
@@ -59,7 +60,9 @@ def hallway_floor(angle_zones: list[dict] | None = None) -> Floor:
                 {
                     "level": 1,
                     "hallway": {"start": [0, 0], "end": [20000, 0], "width_mm": 1700},
-                    "doors": [
+                    "doors": doors
+                    if doors is not None
+                    else [
                         {"room": "101", "side": "left", "at_mm": 3000},
                         {"room": "102", "side": "right", "at_mm": 6000},
                         {"room": "104", "side": "right", "at_mm": 12000},

@@ -109,21 +109,14 @@ def test_a_detection_two_doors_could_explain_is_refused() -> None:
     # Doors 2000 mm apart; the pose 900 mm off and unsure enough (400 mm) that both doors
     # lie within its gate of the first one it passes: neither is guessed. The second door,
     # passed 900 mm off too, has only itself within the gate and is matched.
-    close = parse_floorplan(
-        {
-            "floors": [
-                {
-                    "level": 1,
-                    "hallway": {"start": [0, 0], "end": [20000, 0], "width_mm": 1700},
-                    "doors": [
-                        {"room": "102", "side": "right", "at_mm": 6000},
-                        {"room": "102a", "side": "right", "at_mm": 4000},
-                        {"room": "tea", "side": "left", "at_mm": 15000, "kind": "tea_room"},
-                    ],
-                }
-            ]
-        }
-    ).floor(1)
+    close = hallway_floor(
+        angle_zones=[],
+        doors=[
+            {"room": "102", "side": "right", "at_mm": 6000},
+            {"room": "102a", "side": "right", "at_mm": 4000},
+            {"room": "tea", "side": "left", "at_mm": 15000, "kind": "tea_room"},
+        ],
+    )
     events = drive(close, start=2500, end=7500, speed=300, pose_offset=900.0, pose_sigma_mm=400)
     assert [e.room for e in events] == [None, "102"]
 
