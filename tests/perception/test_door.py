@@ -103,6 +103,14 @@ def test_a_door_many_sigmas_from_where_the_pose_puts_it_is_not_matched() -> None
         4 * math.hypot(30, 50)
     )
     assert detector.gate_mm(pose(6000, -300, 0.0, sigma_mm=2000), floor) == 1200
+    # Along a diagonal hallway, the pose's x-y covariance is part of its sigma along it.
+    diagonal = floor.model_copy(
+        update={"hallway": floor.hallway.model_copy(update={"end": (20000.0, 20000.0)})}
+    )
+    assert diagonal.hallway.heading_deg == pytest.approx(45.0)
+    correlated = pose(6000, -300, 45.0, sigma_mm=100).model_copy(update={"cov_xy_mm2": 8000.0})
+    along = math.sqrt(0.5 * 100**2 + 0.5 * 100**2 + 8000.0)
+    assert detector.gate_mm(correlated, diagonal) == pytest.approx(4 * math.hypot(along, 50))
 
 
 def test_a_detection_two_doors_could_explain_is_refused() -> None:

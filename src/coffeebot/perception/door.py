@@ -353,8 +353,11 @@ class DoorDetector:
         doors matches a false detection to a door a metre away; with a good pose that is
         many sigmas off, and refused."""
         heading = math.radians(floor.hallway.heading_deg)
-        along = math.hypot(math.cos(heading) * pose.sigma_x_mm, math.sin(heading) * pose.sigma_y_mm)
-        sigma = math.hypot(along, self.cfg.centre_sigma_mm)
+        c, s = math.cos(heading), math.sin(heading)
+        along_var = (
+            (c * pose.sigma_x_mm) ** 2 + (s * pose.sigma_y_mm) ** 2 + 2 * c * s * pose.cov_xy_mm2
+        )
+        sigma = math.sqrt(max(along_var, 0.0) + self.cfg.centre_sigma_mm**2)
         return min(self.cfg.match_gate_mm, self.cfg.match_sigmas * sigma)
 
     def _match(self, floor: Floor, side: Side, centre: float) -> Door | Opening | None:
