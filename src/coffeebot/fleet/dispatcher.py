@@ -253,9 +253,15 @@ class Dispatcher:
         self._heard(record)
         if not request.want:
             self.leases.release(robot, request.place)
+            log.info("robot %s gave back the %s", robot, request.place)
             self._hand_on_places()
             return
+        before = self.leases.holder(request.place, self.now())
         answer = self.leases.request(robot, request.place, self.now())
+        if not answer.granted:
+            log.info("robot %s waits for the %s: %s has it", robot, request.place, answer.holder)
+        elif before != robot:
+            log.info("robot %s has the %s", robot, request.place)
         self.send(
             robot,
             LeaseGrant(
@@ -275,6 +281,7 @@ class Dispatcher:
                 continue
             robot = state.waiting[0]
             if self.leases.request(robot, place, self.now()).granted:
+                log.info("robot %s has the %s, handed on", robot, place)
                 self.send(
                     robot,
                     LeaseGrant(

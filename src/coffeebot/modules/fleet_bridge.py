@@ -417,11 +417,12 @@ class FleetBridge(Module):
             await ctx.clock.sleep(1.0)
 
     def _publish_leases(self, ctx: ModuleContext, detail: str) -> None:
-        ctx.board.publish(
-            LEASE_STATE,
-            LeaseState(
-                elevator="elevator" in self._granted,
-                loading_spot="loading_spot" in self._granted,
-                detail=detail,
-            ),
+        state = LeaseState(
+            elevator="elevator" in self._granted,
+            loading_spot="loading_spot" in self._granted,
+            detail=detail,
         )
+        previous = ctx.board.latest(LEASE_STATE)
+        if previous is None or previous.msg.model_copy(update={"detail": detail}) != state:
+            ctx.log.info("%s leases: %s", self.robot, detail)  # a change, not a renewal
+        ctx.board.publish(LEASE_STATE, state)
