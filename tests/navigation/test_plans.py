@@ -194,3 +194,65 @@ def test_the_way_to_the_elevator_keeps_right_and_pulls_over_near_it() -> None:
         PLANNER.side_lane_mm(floor, elevator),
     ]
     assert lanes[0].target_s_mm == elevator.at_mm - CONFIG.navigation.pull_over_mm
+
+
+FLEET_ROBOT = RoutePlanner(
+    PLAN,
+    CONFIG.motion,
+    CONFIG.navigation,
+    CONFIG.geometry.width_mm,
+    pivot_mm=CONFIG.motor.axle_x_mm,
+    parking=PLAN.floor(2).parking[1],
+)
+HOLD_MM = max(CONFIG.navigation.pull_over_mm, CONFIG.navigation.hold_short_mm)
+
+
+def test_a_fleet_robot_waits_for_the_elevator_in_the_tea_room_across_from_it() -> None:
+    """In front of the car's door it would stand in the way of a robot coming out of it."""
+    base = FLEET_ROBOT.base
+    steps = FLEET_ROBOT.route(2, base.door.at_mm, FLEET_ROBOT.door_place("305"), base.door).steps
+    assert steps[0] == Lease("elevator", True)
+    assert isinstance(steps[1], Move) and steps[1].instruction.detail == "out of Tea room"
+    assert steps.count(Lease("elevator", True)) == 1
+
+
+def test_a_fleet_robot_holds_short_of_the_elevator_in_its_keep_right_lane() -> None:
+    """Coming along the hallway, it waits on its own side ``HOLD_MM`` short: a robot coming
+    out of the car towards it passes it on the other side."""
+    floor = PLAN.floor(3)
+    elevator = floor.elevator
+    assert elevator is not None
+    start = PLAN.find_room("305").door.at_mm
+    steps = FLEET_ROBOT.route(3, start, FLEET_ROBOT.base).steps
+    ask = steps.index(Lease("elevator", True))
+    hold = steps[ask - 2]
+    assert isinstance(hold, Move) and hold.instruction.stop
+    assert hold.instruction.target_s_mm == elevator.at_mm - HOLD_MM
+    assert hold.instruction.lane_mm == FLEET_ROBOT.lane_mm(floor, 1.0)
+    # The tea room is across from the car on floor 2: the spot is taken before the car, so
+    # the robot never waits for it in front of the car's door.
+    assert steps[ask - 1] == Lease("loading_spot", True)
+    ride = next(i for i, s in enumerate(steps) if isinstance(s, ElevatorRide))
+    assert ask < ride and steps[ride + 1] == Lease("elevator", False)
+
+
+def test_a_fleet_robot_gives_the_elevator_back_once_clear_of_its_door() -> None:
+    base = FLEET_ROBOT.base
+    steps = FLEET_ROBOT.route(2, base.door.at_mm, FLEET_ROBOT.door_place("305"), base.door).steps
+    ride = next(i for i, s in enumerate(steps) if isinstance(s, ElevatorRide))
+    away, back = steps[ride + 1], steps[ride + 2]
+    elevator = PLAN.floor(3).elevator
+    assert elevator is not None
+    assert isinstance(away, Move) and away.instruction.target_s_mm == elevator.at_mm - HOLD_MM
+    assert back == Lease("elevator", False)
+
+
+def test_a_single_robot_holds_no_places() -> None:
+    base = PLANNER.base
+    for start, goal, leave in (
+        (base.door.at_mm, PLANNER.door_place("305"), base.door),
+        (PLAN.find_room("305").door.at_mm, base, None),
+    ):
+        floor = 2 if leave is not None else 3
+        steps = PLANNER.route(floor, start, goal, leave).steps
+        assert not any(isinstance(s, Lease) for s in steps)

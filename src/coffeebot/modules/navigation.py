@@ -341,8 +341,7 @@ class NavigationModule(Module):
         for move in ride.exit:
             await self._move(ctx, move)
         ctx.board.publish(ELEVATOR_REQUEST, ElevatorRequest(action="release", floor=there))
-        if self.fleet:
-            await self._lease(ctx, Lease("elevator", False))
+        # A fleet's route gives the elevator back once the robot is clear of its door.
 
     # --- deliveries ------------------------------------------------------------------------
 

@@ -20,8 +20,14 @@ A robot of a fleet (``parking`` given) parks at its own spot in the base room, n
 loading spot, and passes the base room's door and the loading spot behind it as a shared
 place: the route says where it must hold the place alone (:class:`Lease` steps), from
 before it turns in at the door to when it stands at its spot, and from when it leaves its
-spot to when it is out in the hallway. (The elevator is the other shared place; its ride
-holds it, see the navigation module.)
+spot to when it is out in the hallway. The elevator is the other shared place. A robot waits
+for it where a robot coming out of the car is not in its way: in its keep-right lane
+``max(pull_over_mm, hold_short_mm)`` short of the elevator, or in the room it leaves when that
+room is nearer than that; and it holds the car until it is that far from it on the other
+floor, so the next robot sets off only once the way is clear. A robot riding to the base room
+on the other floor takes the loading spot before the elevator: coming out of the car it
+could wait for the spot nowhere but in front of the car's door, where the robot leaving the
+room with a cup has to pass (each holding what the other waits for).
 """
 
 from __future__ import annotations
@@ -190,19 +196,28 @@ class RoutePlanner:
         steps: list[Step] = []
         floor = self.plan.floor(floor_level)
         s = s_start
+        rides = goal.floor != floor_level
         if leave is not None:
             s = leave.at_mm
+            if rides and self._near_elevator(floor, s):
+                steps.extend(self._elevator_leases(goal))  # waits in the room, out of the way
             lane = self.lane_mm(floor, self._direction(floor, s, goal))
             steps.append(self._drive_to(floor, floor.from_hallway(s, lane), f"out of {leave.room}"))
             if self.parking is not None and leave.room == self.plan.tea_room.door.room:
                 # A fleet's robot leaves from the loading spot (:meth:`loading`), holding it.
                 steps.append(Lease("loading_spot", False))
-        if goal.floor != floor_level:
-            steps.extend(self._to_elevator(floor, s))
+        if rides:
+            asked = leave is not None and self._near_elevator(floor, s)
+            steps.extend(self._to_elevator(floor, s, goal, asked))
             steps.append(self._ride(floor_level, goal.floor, goal))
             floor = self.plan.floor(goal.floor)
             assert floor.elevator is not None
             s = floor.elevator.at_mm
+            if self.parking is not None:
+                clear = self._clear_of_elevator(floor, s, goal)
+                steps += clear
+                if isinstance(clear[0], Move) and clear[0].instruction.target_s_mm is not None:
+                    s = clear[0].instruction.target_s_mm
         steps.extend(self._along(floor, s, goal))
         return Route(steps)
 
@@ -222,14 +237,63 @@ class RoutePlanner:
             target = goal.door.at_mm
         return 1.0 if target >= s else -1.0
 
-    def _to_elevator(self, floor: Floor, s: float) -> list[Step]:
+    # --- the elevator in a fleet ------------------------------------------------------------
+
+    @property
+    def _elevator_hold_mm(self) -> float:
+        return max(self.nav.pull_over_mm, self.nav.hold_short_mm)
+
+    def _near_elevator(self, floor: Floor, s: float) -> bool:
+        return (
+            self.parking is not None
+            and floor.elevator is not None
+            and abs(floor.elevator.at_mm - s) <= self._elevator_hold_mm
+        )
+
+    def _elevator_leases(self, goal: Place) -> list[Step]:
+        """What a fleet's robot holds before it rides: the elevator, and first the loading
+        spot when the base room it rides to is near the elevator on the other floor."""
+        if self.parking is None:
+            return []
+        there = self.plan.floor(goal.floor).elevator
+        assert there is not None
+        leases: list[Step] = []
+        if goal.inside and abs(goal.door.at_mm - there.at_mm) <= self._elevator_hold_mm:
+            leases.append(Lease("loading_spot", True))
+        return [*leases, Lease("elevator", True)]
+
+    def _clear_of_elevator(self, floor: Floor, s: float, goal: Place) -> list[Step]:
+        """Out of the car, a fleet's robot gives the elevator back once it is as far from
+        it as the next robot waits (at once if its goal is nearer)."""
+        direction = 1.0 if goal.door.at_mm >= s else -1.0
+        clear_at = s + direction * self._elevator_hold_mm
+        if (goal.door.at_mm - clear_at) * direction <= 0:
+            return [Lease("elevator", False)]
+        lane = self.lane_mm(floor, direction)
+        return [
+            self._lane(floor, clear_at, lane, stop=False, detail="away from the elevator"),
+            Lease("elevator", False),
+        ]
+
+    def _to_elevator(self, floor: Floor, s: float, goal: Place, asked: bool) -> list[Step]:
+        """To the elevator's door; a fleet's robot holds short of it for its leases unless
+        it ``asked`` for them already."""
         elevator = floor.elevator
         assert elevator is not None  # the floor plan loader guarantees it
+        leases = [] if asked else self._elevator_leases(goal)
         if abs(elevator.at_mm - s) <= self.motion.stop_tolerance_mm:
-            return []  # across the hallway from it already (out of the tea room)
+            return leases  # across the hallway from it already (out of the tea room)
         direction = 1.0 if elevator.at_mm >= s else -1.0
         lane = self.side_lane_mm(floor, elevator)
-        steps = self._keep_right_first(floor, s, elevator, direction, lane)
+        if self.parking is None:
+            steps = self._keep_right_first(floor, s, elevator, direction, lane)
+        else:
+            hold_at = elevator.at_mm - direction * self._elevator_hold_mm
+            steps = []
+            if (hold_at - s) * direction > 0:
+                keep_right = self.lane_mm(floor, direction)
+                steps.append(self._lane(floor, hold_at, keep_right, detail="short of the elevator"))
+            steps += leases
         stop_at = self.turn_point_mm(elevator, direction)
         steps.append(self._lane(floor, stop_at, lane, detail=f"to the elevator on {floor.name}"))
         return steps
