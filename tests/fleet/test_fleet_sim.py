@@ -6,9 +6,8 @@ One run (module fixture) as fast as the machine allows, on the simulated clock; 
 tests assert is ground truth the world recorded along the way. The orders: two at once, to
 211 and 213, so both robots want the loading spot first thing.
 
-(Two robots meeting head-on in the 1700 mm hallway do not pass each other yet: each takes
-the other for an obstacle in its lane and they end up face to face, stopped and "blocked";
-docs/fleet.md, "What is not done".)
+Two robots meeting head-on in the hallway are ``tests/navigation/test_passing_in_world.py``'s;
+the fleet at work, 1 to 4 robots for half an hour each, is ``bench/fleet.py``'s.
 """
 
 from __future__ import annotations

@@ -1,0 +1,455 @@
+"""The fleet at work: 1 to 4 simulated robots taking Poisson orders, against the targets.
+
+    python bench/fleet.py                     # a table, for docs/fleet.md
+    python bench/fleet.py --json              # one JSON object
+    python bench/fleet.py --robots 1,3 --rates 90 --minutes 10 --workers 2
+
+Each case is one fleet on a Mosquitto of its own (``coffeebot.runtime.fleet``): the
+dispatcher and N whole robot daemons in one simulated CS building, every robot parked at its
+spot in the tea room at the start. Orders arrive as a Poisson process at the case's rate, to
+rooms drawn from every office of both floors; the simulated staff load the cup 3 s after the
+robot is ready for it and the customer takes it 5 s after it arrived. The fleet dispatches
+by joint assignment (``linear_sum_assignment``, the default); at the rates of
+``--greedy-rates`` (the saturated one: there orders pile up and the two strategies choose
+differently) each case runs a second time on the same arrivals with first-come greedy
+dispatch (``[fleet.dispatch] strategy``), for the comparison.
+
+What it measures, on the simulated clock:
+- ``delivered_per_h``: cups handed over within the case's minutes (joint strategy);
+- ``wait_p50_s``, ``wait_p95_s``: order to the robot at the door; an order still waiting at
+  the end counts with its wait so far (a lower bound), so a swamped fleet shows as one;
+- ``contacts``: any touch of a robot's body, in either strategy's run;
+- ``elevator_wait_p95_s``: from a robot's asking for the elevator (at its door) until it is
+  inside the car, the car's own travel included;
+- ``joint_p95_s``, ``greedy_p95_s``: the wait p95 of each strategy's run (greedy: null where
+  it was not run).
+
+``broker_kill``: three robots at 30 orders an hour for half the minutes, the broker killed
+twice for 20 s while orders are on their way, then the orders drained: every order placed
+must end delivered or failed with its reason (``lost`` counts those that never end), and
+none may be served by two robots (``duplicated``: two robots reported it at its door).
+
+Per robot, the broker's load (messages and bytes a second, by an observer subscribed to
+everything) and the dispatcher's CPU (its daemon's modules and board, per simulated second)
+are measured for docs/fleet.md's "How far one broker and one dispatcher go".
+
+Targets: 0 contacts; 0 lost and 0 duplicated orders; at saturation three robots deliver at
+least 2.4x what one does; joint assignment's p95 no worse than greedy's.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import contextlib
+import functools
+import json
+import logging
+import random
+import sys
+import time
+from collections import defaultdict
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import aiomqtt
+import numpy as np
+
+from coffeebot.config import RobotConfig, load_robot_config
+from coffeebot.cpu import BOARD_NAME
+from coffeebot.fleet.mosquitto import DISPATCHER_USER, Mosquitto, mosquitto
+from coffeebot.floorplan import load_floorplan
+from coffeebot.messages import DELIVERY_STATUS, LEASE_NEED, OrderStatus
+from coffeebot.modules.base import Module, ModuleContext
+from coffeebot.runtime.fleet import FleetSim, build_fleet_sim, robot_ids, serve_fleet
+from coffeebot.scenario.spec import Staff
+from coffeebot.scenario.staff import StaffModule
+from coffeebot.store import NewOrder, OrderRules
+
+ROOT = Path(__file__).resolve().parents[1]
+PLAN = load_floorplan(ROOT / "floorplans" / "cs-building.toml")
+BOARD = load_robot_config(ROOT / "boards" / "coffeebot-v1.toml")
+RULES = OrderRules(rooms=set(PLAN.rooms), drinks=set(BOARD.web.drinks))
+STAFF = Staff(load_after_s=3.0, pickup_after_s=5.0)
+SAMPLE_S = 0.25
+"""How often the bench looks at the world (elevator entries) and places due orders."""
+SPEED = 4.0
+"""The daemons are in lockstep with the world, the broker between them is not: at most
+this fast, so a message's time on the wire stays small in simulated time."""
+MODERATE_PER_H = 10
+SATURATED_PER_H = 90
+"""One robot delivers ~15 cups an hour, four ~50: 10 an hour keeps one robot busy most of the
+time, 90 an hour swamps every fleet size."""
+KILLS_AT = (0.3, 0.65)
+"""When the broker is killed, as fractions of the broker-kill case's minutes."""
+KILL_FOR_S = 20.0
+KILL_PER_H = 30
+"""The broker-kill case's rate: three robots busy, an order or two waiting most of the time."""
+DRAIN_S = 1800.0
+"""After the broker-kill case's orders stop: simulated seconds for every order to end."""
+AT_THE_DOOR = (OrderStatus.ARRIVED, OrderStatus.DELIVERED)
+
+
+@dataclass(frozen=True)
+class Case:
+    robots: int
+    orders_per_h: float
+    strategy: str
+    minutes: float
+    seed: int
+    broker_kill: bool = False
+
+
+@dataclass
+class Probe(Module):
+    """On a robot's board: when it asked for the elevator, which orders it got to the door."""
+
+    name = "bench_probe"
+    inputs = (DELIVERY_STATUS, LEASE_NEED)
+
+    elevator_asked_s: list[float] = field(default_factory=list)
+    at_door: set[str] = field(default_factory=set)
+
+    async def run(self, ctx: ModuleContext) -> None:
+        with (
+            ctx.board.subscribe(DELIVERY_STATUS) as reports,
+            ctx.board.subscribe(LEASE_NEED) as needs,
+        ):
+            while True:
+                while (report := reports.get_nowait()) is not None:
+                    if report.msg.status in AT_THE_DOOR:
+                        self.at_door.add(report.msg.order_id)
+                while (need := needs.get_nowait()) is not None:
+                    if need.msg.place == "elevator" and need.msg.want:
+                        self.elevator_asked_s.append(ctx.clock.now())
+                await ctx.clock.sleep(SAMPLE_S)
+
+
+@dataclass
+class Traffic:
+    """What crossed the broker, per robot (an observer subscribed to everything)."""
+
+    messages: dict[str, int] = field(default_factory=lambda: defaultdict(int))
+    payload_bytes: dict[str, int] = field(default_factory=lambda: defaultdict(int))
+
+
+async def observe(broker: Mosquitto, traffic: Traffic) -> None:
+    login = broker.credentials[DISPATCHER_USER]
+    host, port = broker.address.host, broker.address.port
+    while True:
+        with contextlib.suppress(aiomqtt.MqttError):
+            async with aiomqtt.Client(
+                host,
+                port,
+                username=login.username,
+                password=login.password,
+                identifier="bench-observer",
+            ) as client:
+                await client.subscribe("coffeebot/v1/robots/#", qos=0)
+                async for message in client.messages:
+                    robot = str(message.topic).split("/")[3]
+                    traffic.messages[robot] += 1
+                    payload = message.payload
+                    traffic.payload_bytes[robot] += (
+                        len(payload) if isinstance(payload, bytes) else 0
+                    )
+        await asyncio.sleep(0.5)
+
+
+def arrivals(case: Case) -> list[tuple[float, str]]:
+    """(simulated second, room) of every order: exponential gaps at the case's rate."""
+    rng = random.Random(case.seed)
+    rooms = sorted(PLAN.rooms)
+    t, out = 0.0, list[tuple[float, str]]()
+    while True:
+        t += rng.expovariate(case.orders_per_h / 3600.0)
+        if t >= case.minutes * 60:
+            return out
+        out.append((t, rng.choice(rooms)))
+
+
+def percentile(values: list[float], q: float) -> float | None:
+    return round(float(np.percentile(values, q)), 1) if values else None
+
+
+async def drive(
+    fleet: FleetSim, case: Case, staff: StaffModule, probes: dict[str, Probe], broker: Mosquitto
+) -> dict[str, Any]:
+    clock = fleet.dispatcher.board.clock
+    orders = fleet.dispatcher.module
+    lift = fleet.world.world.elevator
+    assert lift is not None
+    due = arrivals(case)
+    placed: dict[str, float] = {}
+    entered: dict[str, list[float]] = {name: [] for name in probes}
+    end_s = case.minutes * 60
+    kills = [f * end_s for f in KILLS_AT] if case.broker_kill else []
+    restart_at: float | None = None
+
+    async def place(room: str) -> None:
+        new = NewOrder.model_validate(
+            {"room": room, "drink": BOARD.web.drinks[0], "name": "Ada"}, context=RULES
+        )
+        while True:
+            with contextlib.suppress(Exception):
+                order = await orders.place(new, "bench")
+                placed[order.id] = clock.now()
+                return
+            await clock.sleep(0.05)  # the dispatcher is still starting
+
+    while True:
+        now = clock.now()
+        while due and due[0][0] <= now:
+            await place(due.pop(0)[1])
+        if kills and now >= kills[0]:
+            kills.pop(0)
+            broker.stop()
+            restart_at = now + KILL_FOR_S
+        if restart_at is not None and now >= restart_at:
+            broker.start()
+            restart_at = None
+        with fleet.world.lock:
+            for sim in fleet.sims:
+                asked, inside = probes[sim.robot.name].elevator_asked_s, entered[sim.robot.name]
+                pose = sim.robot.pose
+                if len(inside) < len(asked) and lift.inside(
+                    sim.robot.floor_level, pose.x_mm, pose.y_mm
+                ):
+                    inside.append(now)
+        if now >= end_s and restart_at is None:
+            ended = all((t := staff.orders.get(o)) is not None and t.status.final for o in placed)
+            if not case.broker_kill or ended or now >= end_s + DRAIN_S:
+                break
+        await clock.sleep(SAMPLE_S)
+
+    waits, delivered, failed = [], 0, []
+    for order_id, placed_s in placed.items():
+        times = staff.orders.get(order_id)
+        if times is not None and times.arrived_s is not None and times.arrived_s <= end_s:
+            waits.append(times.arrived_s - placed_s)
+        elif times is None or not times.status.final:
+            waits.append(end_s - placed_s)
+        if times is not None and times.status is OrderStatus.DELIVERED:
+            delivered += times.ended_s is not None and times.ended_s <= end_s
+        elif times is not None and times.status.final:
+            order = await orders.get(order_id)
+            failed.append(f"{order.room}: {order.status}, {order.detail}")
+    elevator = [
+        entered_s - asked_s
+        for name, probe in probes.items()
+        for asked_s, entered_s in zip(probe.elevator_asked_s, entered[name], strict=False)
+    ]
+    servers: dict[str, int] = defaultdict(int)
+    for probe in probes.values():
+        for order_id in probe.at_door:
+            servers[order_id] += 1
+    contacts = [
+        f"{sim.robot.name} at {c.t_s:.1f} s: {c.element} at {c.speed_mm_s:.0f} mm/s"
+        for sim in fleet.sims
+        for c in sim.robot.collisions
+    ]
+    accounts = fleet.dispatcher.daemon.cpu.accounts
+    dispatcher_cpu_s = sum(a.seconds for a in accounts.values())
+    return {
+        "robots": case.robots,
+        "orders_per_h": case.orders_per_h,
+        "strategy": case.strategy,
+        "simulated_s": round(clock.now(), 1),
+        "orders": len(placed),
+        "delivered": delivered,
+        "delivered_per_h": round(delivered / (end_s / 3600), 1),
+        "failed": failed,
+        "waiting_at_end": sum(
+            (t := staff.orders.get(o)) is None or not t.status.final for o in placed
+        ),
+        "wait_p50_s": percentile(waits, 50),
+        "wait_p95_s": percentile(waits, 95),
+        "elevator_rides": len(elevator),
+        "elevator_wait_p95_s": percentile(elevator, 95),
+        "contacts": contacts,
+        "lost": sum((t := staff.orders.get(o)) is None or not t.status.final for o in placed),
+        "duplicated": sum(n > 1 for n in servers.values()),
+        "dispatcher_cpu_pct_per_robot": round(
+            100 * dispatcher_cpu_s / clock.now() / case.robots, 3
+        ),
+        "dispatcher_board_pct": round(100 * accounts[BOARD_NAME].seconds / clock.now(), 3),
+    }
+
+
+async def run_case(case: Case) -> dict[str, Any]:
+    fleet_config = BOARD.fleet.model_copy(
+        update={"dispatch": BOARD.fleet.dispatch.model_copy(update={"strategy": case.strategy})}
+    )
+    config: RobotConfig = BOARD.model_copy(update={"fleet": fleet_config})
+    names = robot_ids(case.robots)
+    staff = StaffModule(STAFF)
+    probes = {name: Probe() for name in names}
+    traffic = Traffic()
+    started = time.monotonic()
+    with mosquitto(names) as broker:
+        async with build_fleet_sim(
+            config,
+            PLAN,
+            case.robots,
+            broker.address,
+            broker.credentials,
+            speed=SPEED,
+            seed=case.seed,
+            web=False,
+            dispatcher_extra=[staff],
+            robot_extra=lambda name: [probes[name]],
+        ) as fleet:
+            serving = asyncio.create_task(serve_fleet(fleet))
+            observer = asyncio.create_task(observe(broker, traffic))
+            try:
+                result = await drive(fleet, case, staff, probes, broker)
+            finally:
+                observer.cancel()
+                fleet.request_stop("bench case over")
+                await asyncio.wait_for(serving, 120)
+    simulated_s = result["simulated_s"]
+    result["broker_msgs_per_s_per_robot"] = round(
+        sum(traffic.messages.values()) / simulated_s / case.robots, 2
+    )
+    result["broker_bytes_per_s_per_robot"] = round(
+        sum(traffic.payload_bytes.values()) / simulated_s / case.robots
+    )
+    result["wall_s"] = round(time.monotonic() - started, 1)
+    return result
+
+
+def run_case_in_process(case: Case, log_dir: Path | None) -> dict[str, Any]:
+    if log_dir is not None:
+        name = f"{case.robots}x{case.orders_per_h:g}-{case.strategy}" + (
+            "-broker-kill" if case.broker_kill else ""
+        )
+        logging.basicConfig(
+            filename=log_dir / f"{name}.log",
+            level=logging.INFO,
+            format="%(asctime)s %(name)s %(levelname)s %(message)s",
+        )
+    return asyncio.run(run_case(case))
+
+
+def summarize(runs: list[dict[str, Any]], cases: list[Case]) -> dict[str, Any]:
+    by_key = {(r["robots"], r["orders_per_h"], r["strategy"]): r for r in runs}
+    rows = []
+    for robots, rate in sorted({(c.robots, c.orders_per_h) for c in cases if not c.broker_kill}):
+        joint, greedy = by_key[(robots, rate, "joint")], by_key.get((robots, rate, "greedy"))
+        rows.append(
+            {
+                "robots": robots,
+                "orders_per_h": rate,
+                "delivered_per_h": joint["delivered_per_h"],
+                "wait_p50_s": joint["wait_p50_s"],
+                "wait_p95_s": joint["wait_p95_s"],
+                "contacts": len(joint["contacts"]) + len(greedy["contacts"] if greedy else []),
+                "elevator_wait_p95_s": joint["elevator_wait_p95_s"],
+                "joint_p95_s": joint["wait_p95_s"],
+                "greedy_p95_s": greedy["wait_p95_s"] if greedy else None,
+            }
+        )
+    result: dict[str, Any] = {"cases": rows}
+    kill = [r for c, r in zip(cases, runs, strict=True) if c.broker_kill]
+    if kill:
+        k = kill[0]
+        result["broker_kill"] = {
+            "orders": k["orders"],
+            "lost": k["lost"],
+            "duplicated": k["duplicated"],
+            "failed": k["failed"],
+        }
+    return result
+
+
+def print_table(result: dict[str, Any], runs: list[dict[str, Any]], elapsed: float) -> None:
+    rows = result["cases"]
+    one = {r["orders_per_h"]: r["delivered_per_h"] for r in rows if r["robots"] == 1}
+    print(
+        "| robots | orders/h | delivered/h | vs 1 robot | wait p50 s | wait p95 s | contacts "
+        "| elevator wait p95 s | joint p95 s | greedy p95 s |"
+    )
+    print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for r in rows:
+        base = one.get(r["orders_per_h"])
+        ratio = f"{r['delivered_per_h'] / base:.2f}x" if base else "-"
+        print(
+            f"| {r['robots']} | {r['orders_per_h']:g} | {r['delivered_per_h']:.1f} | {ratio} "
+            f"| {r['wait_p50_s']} | {r['wait_p95_s']} | {r['contacts']} "
+            f"| {r['elevator_wait_p95_s']} | {r['joint_p95_s']} | {r['greedy_p95_s']} |"
+        )
+    if "broker_kill" in result:
+        k = result["broker_kill"]
+        print(
+            f"\nbroker killed twice for {KILL_FOR_S:.0f} s: {k['orders']} orders, "
+            f"{k['lost']} lost, {k['duplicated']} duplicated"
+        )
+    print(
+        "\n| run | simulated s | wall s | failed | msgs/s/robot | B/s/robot | dispatcher %/robot |"
+    )
+    print("|---|---:|---:|---|---:|---:|---:|")
+    for r in runs:
+        label = f"{r['robots']} x {r['orders_per_h']:g}/h {r['strategy']}"
+        print(
+            f"| {label} | {r['simulated_s']:.0f} | {r['wall_s']:.0f} | {len(r['failed'])} "
+            f"| {r['broker_msgs_per_s_per_robot']} | {r['broker_bytes_per_s_per_robot']} "
+            f"| {r['dispatcher_cpu_pct_per_robot']} |"
+        )
+    print(f"\n{elapsed / 60:.1f} min")
+
+
+def int_list(text: str) -> list[int]:
+    return [int(part) for part in text.split(",") if part]
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--robots", type=int_list, default=[1, 2, 3, 4])
+    parser.add_argument("--rates", type=int_list, default=[MODERATE_PER_H, SATURATED_PER_H])
+    parser.add_argument("--greedy-rates", type=int_list, default=[SATURATED_PER_H])
+    parser.add_argument("--minutes", type=float, default=30.0, help="simulated, per case")
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--workers", type=int, default=1, help="cases at once, a process each")
+    parser.add_argument("--no-broker-kill", action="store_true")
+    parser.add_argument("--json", action="store_true")
+    parser.add_argument("--save", type=Path, help="every run's figures, as JSON")
+    parser.add_argument("--logs", type=Path, metavar="DIR", help="each case's log, INFO and up")
+    args = parser.parse_args(argv)
+    cases = [
+        Case(robots, rate, strategy, args.minutes, args.seed)
+        for robots in args.robots
+        for rate in args.rates
+        for strategy in ("joint", "greedy")
+        if strategy == "joint" or rate in args.greedy_rates
+    ]
+    if not args.no_broker_kill:
+        cases.append(Case(3, KILL_PER_H, "joint", args.minutes / 2, args.seed, True))
+    # The longest first, so two workers end together.
+    order = sorted(range(len(cases)), key=lambda i: -cases[i].robots * cases[i].minutes)
+    started = time.monotonic()
+    with ProcessPoolExecutor(args.workers) as pool:
+        done = dict(
+            zip(
+                order,
+                pool.map(
+                    functools.partial(run_case_in_process, log_dir=args.logs),
+                    [cases[i] for i in order],
+                ),
+                strict=True,
+            )
+        )
+    runs = [done[i] for i in range(len(cases))]
+    result = summarize(runs, cases)
+    if args.save:
+        args.save.write_text(json.dumps({"result": result, "runs": runs}, indent=1))
+    if args.json:
+        print(json.dumps(result))
+    else:
+        print_table(result, runs, time.monotonic() - started)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
