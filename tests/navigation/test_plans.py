@@ -6,7 +6,7 @@ import math
 
 from helpers import CONFIG, PLAN, ROOT
 
-from coffeebot.floorplan import load_floorplan
+from coffeebot.floorplan import Floor, load_floorplan
 from coffeebot.messages import DeliveryProblem, OrderStatus
 from coffeebot.navigation.control import SpeedProfile, wheel_speeds
 from coffeebot.navigation.lifecycle import DeliveryLifecycle
@@ -207,6 +207,12 @@ FLEET_ROBOT = RoutePlanner(
 HOLD_MM = max(CONFIG.navigation.pull_over_mm, CONFIG.navigation.hold_short_mm)
 
 
+def waiting_lane(floor: Floor) -> float:
+    """Towards the elevator (+s), on the right as close to the wall as a passing robot."""
+    half = floor.hallway.width_mm / 2
+    return -(half - CONFIG.motion.passing_wall_distance_mm - CONFIG.geometry.width_mm / 2)
+
+
 def test_a_fleet_robot_waits_for_the_elevator_in_the_tea_room_across_from_it() -> None:
     """In front of the car's door it would stand in the way of a robot coming out of it."""
     base = FLEET_ROBOT.base
@@ -217,8 +223,8 @@ def test_a_fleet_robot_waits_for_the_elevator_in_the_tea_room_across_from_it() -
 
 
 def test_a_fleet_robot_holds_short_of_the_elevator_in_its_keep_right_lane() -> None:
-    """Coming along the hallway, it waits on its own side ``HOLD_MM`` short: a robot coming
-    out of the car towards it passes it on the other side."""
+    """Coming along the hallway, it waits on its own side ``HOLD_MM`` short, close to the
+    wall: a robot coming out of the car towards it passes it on the other side."""
     floor = PLAN.floor(3)
     elevator = floor.elevator
     assert elevator is not None
@@ -228,7 +234,7 @@ def test_a_fleet_robot_holds_short_of_the_elevator_in_its_keep_right_lane() -> N
     hold = steps[ask - 2]
     assert isinstance(hold, Move) and hold.instruction.stop
     assert hold.instruction.target_s_mm == elevator.at_mm - HOLD_MM
-    assert hold.instruction.lane_mm == FLEET_ROBOT.lane_mm(floor, 1.0)
+    assert hold.instruction.lane_mm == waiting_lane(floor)
     # The tea room is across from the car on floor 2: the spot is taken before the car, so
     # the robot never waits for it in front of the car's door.
     assert steps[ask - 1] == Lease("loading_spot", True)
@@ -256,3 +262,20 @@ def test_a_single_robot_holds_no_places() -> None:
         floor = 2 if leave is not None else 3
         steps = PLANNER.route(floor, start, goal, leave).steps
         assert not any(isinstance(s, Lease) for s in steps)
+
+
+def test_a_fleet_robot_beside_the_elevator_waits_for_it_in_its_own_lane() -> None:
+    """313 is on the elevator's side, 3 m from it: a robot leaving it must not wait in the
+    lane of a robot coming out of the car towards 303, nor askew, reaching into it."""
+    floor = PLAN.floor(3)
+    elevator = floor.elevator
+    assert elevator is not None
+    door = PLAN.find_room("313").door
+    steps = FLEET_ROBOT.route(3, door.at_mm, FLEET_ROBOT.base).steps
+    ask = steps.index(Lease("loading_spot", True))
+    square, hold = steps[ask - 2], steps[ask - 1]
+    assert isinstance(square, Move) and square.instruction.action == "turn"
+    assert square.instruction.heading_deg == FLEET_ROBOT.travel_deg(floor, 1.0)
+    assert isinstance(hold, Move) and hold.instruction.action == "follow_lane"
+    assert hold.instruction.stop and hold.instruction.lane_mm == waiting_lane(floor)
+    assert door.at_mm < hold.instruction.target_s_mm < elevator.at_mm

@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 from coffeebot.config import MotionConfig, NavigationConfig
 from coffeebot.floorplan import Door, Floor, FloorPlan, ParkingSpot
 from coffeebot.messages import MoveInstruction, SharedPlace
+from coffeebot.navigation.passing import passing_lane_mm
 
 
 @dataclass(frozen=True)
@@ -289,11 +290,31 @@ class RoutePlanner:
             steps = self._keep_right_first(floor, s, elevator, direction, lane)
         else:
             hold_at = elevator.at_mm - direction * self._elevator_hold_mm
-            steps = []
+            # On its own side, as close to the wall as a robot passing another: a robot
+            # coming out of the car and going the other way passes it.
+            keep_right = passing_lane_mm(
+                floor, direction, self.motion.passing_wall_distance_mm, self.body_width_mm
+            )
             if (hold_at - s) * direction > 0:
-                keep_right = self.lane_mm(floor, direction)
-                steps.append(self._lane(floor, hold_at, keep_right, detail="short of the elevator"))
-            steps += leases
+                holds = [self._lane(floor, hold_at, keep_right, detail="short of the elevator")]
+            else:
+                # Nearer already (out of an office beside it): square to the hallway, then
+                # into that lane along the way there is, up to ``hold_short_mm`` short of
+                # the turn, room for the robot coming out to turn into its lane (driven
+                # diagonally at it, the body faced the wall; over a short way, it ended
+                # askew, reaching into the other lane).
+                wait_at = self.turn_point_mm(elevator, direction) - direction * (
+                    self.nav.hold_short_mm
+                )
+                holds = (
+                    [
+                        self._turn(floor, self.travel_deg(floor, direction), "along the hallway"),
+                        self._lane(floor, wait_at, keep_right, detail="short of the elevator"),
+                    ]
+                    if (wait_at - s) * direction > 0
+                    else []  # at the elevator already: it asks where it stands
+                )
+            steps = [*holds, *leases]
         stop_at = self.turn_point_mm(elevator, direction)
         steps.append(self._lane(floor, stop_at, lane, detail=f"to the elevator on {floor.name}"))
         return steps
