@@ -11,8 +11,9 @@ rooms drawn from every office of both floors; the simulated staff load the cup 3
 robot is ready for it and the customer takes it 5 s after it arrived. The fleet dispatches
 by joint assignment (``linear_sum_assignment``, the default); at the rates of
 ``--greedy-rates`` (the saturated one: there orders pile up and the two strategies choose
-differently) each case runs a second time on the same arrivals with first-come greedy
-dispatch (``[fleet.dispatch] strategy``), for the comparison.
+differently) and fleet sizes of ``--greedy-robots``, each case runs a second time on the
+same arrivals with first-come greedy dispatch (``[fleet.dispatch] strategy``), for the
+comparison.
 
 What it measures, on the simulated clock:
 - ``delivered_per_h``: cups handed over within the case's minutes (joint strategy);
@@ -409,6 +410,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--robots", type=int_list, default=[1, 2, 3, 4])
     parser.add_argument("--rates", type=int_list, default=[MODERATE_PER_H, SATURATED_PER_H])
     parser.add_argument("--greedy-rates", type=int_list, default=[SATURATED_PER_H])
+    parser.add_argument("--greedy-robots", type=int_list, default=[1, 2, 3, 4])
     parser.add_argument("--minutes", type=float, default=30.0, help="simulated, per case")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--workers", type=int, default=1, help="cases at once, a process each")
@@ -422,7 +424,7 @@ def main(argv: list[str] | None = None) -> int:
         for robots in args.robots
         for rate in args.rates
         for strategy in ("joint", "greedy")
-        if strategy == "joint" or rate in args.greedy_rates
+        if strategy == "joint" or (rate in args.greedy_rates and robots in args.greedy_robots)
     ]
     if not args.no_broker_kill:
         cases.append(Case(3, KILL_PER_H, "joint", args.minutes / 2, args.seed, True))
