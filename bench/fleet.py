@@ -330,6 +330,7 @@ def run_case_in_process(case: Case, log_dir: Path | None) -> dict[str, Any]:
             filename=log_dir / f"{name}.log",
             level=logging.INFO,
             format="%(asctime)s %(name)s %(levelname)s %(message)s",
+            force=True,  # a worker process runs several cases: each its own file
         )
     return asyncio.run(run_case(case))
 
