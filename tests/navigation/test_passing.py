@@ -8,7 +8,7 @@ from helpers import CONFIG, PLAN, estimate_at
 
 from coffeebot.messages import MoveInstruction, OtherRobot, Traffic
 from coffeebot.modules.motion import MotionModule
-from coffeebot.navigation.passing import LOOKAHEAD_MM, MAX_AGE_S, oncoming, passing_lane_mm
+from coffeebot.navigation.passing import LOOKAHEAD_MM, MAX_AGE_S, oncoming, right_lane_mm
 from coffeebot.navigation.route import RoutePlanner
 
 FLOOR = PLAN.floor(2)
@@ -85,7 +85,7 @@ def test_the_passing_lane_is_on_the_right_at_its_wall_distance() -> None:
     width = CONFIG.geometry.width_mm
     half = FLOOR.hallway.width_mm / 2
     for direction in (1.0, -1.0):
-        lane = passing_lane_mm(FLOOR, direction, 150.0, width)
+        lane = right_lane_mm(FLOOR, direction, 150.0, width)
         keep_right = RoutePlanner(PLAN, CONFIG.motion, CONFIG.navigation, width).lane_mm(
             FLOOR, direction
         )

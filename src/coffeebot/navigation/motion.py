@@ -39,7 +39,7 @@ from coffeebot.navigation.control import (
 from coffeebot.navigation.costmap import Footprint, LocalCostmap
 from coffeebot.navigation.detour import DetourPlanner, Phase, Sighting
 from coffeebot.navigation.dwa import DynamicWindow, rollout
-from coffeebot.navigation.passing import oncoming, passing_lane_mm
+from coffeebot.navigation.passing import oncoming, right_lane_mm
 from coffeebot.perception.geometry import wrap_deg
 
 AIM_BEFORE_DRIVING_DEG = 10.0
@@ -309,7 +309,7 @@ class MotionController:
         self.passing = None
         if ins.lane_mm is None:
             return d
-        passing = passing_lane_mm(
+        passing = right_lane_mm(
             floor, direction, self.cfg.passing_wall_distance_mm, self.footprint.width_mm
         )
         keeps_right = ins.lane_mm * direction < 0

@@ -60,10 +60,11 @@ def oncoming(
     return None
 
 
-def passing_lane_mm(
-    floor: Floor, direction: float, passing_wall_distance_mm: float, body_width_mm: float
+def right_lane_mm(
+    floor: Floor, direction: float, wall_distance_mm: float, body_width_mm: float
 ) -> float:
-    """The passing lane's centre (``d``) travelling towards ``direction``: on the right, as
-    the keep-right lane, ``passing_wall_distance_mm`` from the wall."""
-    offset = floor.hallway.width_mm / 2 - passing_wall_distance_mm - body_width_mm / 2
+    """The centre (``d``) of a lane on the right travelling towards ``direction``, the body's
+    side ``wall_distance_mm`` from the wall: the keep-right lane at ``wall_distance_mm``, the
+    passing lane at ``passing_wall_distance_mm``."""
+    offset = floor.hallway.width_mm / 2 - wall_distance_mm - body_width_mm / 2
     return -direction * max(0.0, offset)

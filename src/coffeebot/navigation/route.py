@@ -21,13 +21,14 @@ loading spot, and passes the base room's door and the loading spot behind it as 
 place: the route says where it must hold the place alone (:class:`Lease` steps), from
 before it turns in at the door to when it stands at its spot, and from when it leaves its
 spot to when it is out in the hallway. The elevator is the other shared place. A robot waits
-for it where a robot coming out of the car is not in its way: in its keep-right lane
-``max(pull_over_mm, hold_short_mm)`` short of the elevator, or in the room it leaves when that
-room is nearer than that; and it holds the car until it is that far from it on the other
-floor, so the next robot sets off only once the way is clear. A robot riding to the base room
-on the other floor takes the loading spot before the elevator: coming out of the car it
-could wait for the spot nowhere but in front of the car's door, where the robot leaving the
-room with a cup has to pass (each holding what the other waits for).
+for it where a robot coming out of the car is not in its way: on its own side, as near the
+wall as a passing robot, ``max(pull_over_mm, hold_short_mm)`` short of the elevator, or in
+the room it leaves when that room is nearer than that; and it holds the car until it is
+that far from it on the other floor, so the next robot sets off only once the way is clear.
+A robot riding to the base room on the other floor takes the loading spot before the
+elevator: coming out of the car it could wait for the spot nowhere but in front of the
+car's door, where the robot leaving the room with a cup has to pass (each holding what the
+other waits for).
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ from dataclasses import dataclass, field
 from coffeebot.config import MotionConfig, NavigationConfig
 from coffeebot.floorplan import Door, Floor, FloorPlan, ParkingSpot
 from coffeebot.messages import MoveInstruction, SharedPlace
-from coffeebot.navigation.passing import passing_lane_mm
+from coffeebot.navigation.passing import right_lane_mm
 
 
 @dataclass(frozen=True)
@@ -121,8 +122,7 @@ class RoutePlanner:
 
     def lane_mm(self, floor: Floor, direction: float) -> float:
         """Keep-right lane centre (``d``) when travelling towards ``direction`` (+1/-1 in s)."""
-        offset = floor.hallway.width_mm / 2 - self.motion.wall_distance_mm - self.body_width_mm / 2
-        return -direction * max(0.0, offset)
+        return right_lane_mm(floor, direction, self.motion.wall_distance_mm, self.body_width_mm)
 
     def side_lane_mm(self, floor: Floor, door: Door) -> float:
         """Lane centre at the wall distance on the door's side of the hallway."""
@@ -198,27 +198,26 @@ class RoutePlanner:
         floor = self.plan.floor(floor_level)
         s = s_start
         rides = goal.floor != floor_level
+        # Leaving a room near the elevator, a fleet's robot waits for it in the room.
+        asked = rides and leave is not None and self._near_elevator(floor, leave.at_mm)
+        if asked:
+            steps.extend(self._elevator_leases(goal))
         if leave is not None:
             s = leave.at_mm
-            if rides and self._near_elevator(floor, s):
-                steps.extend(self._elevator_leases(goal))  # waits in the room, out of the way
             lane = self.lane_mm(floor, self._direction(floor, s, goal))
             steps.append(self._drive_to(floor, floor.from_hallway(s, lane), f"out of {leave.room}"))
             if self.parking is not None and leave.room == self.plan.tea_room.door.room:
                 # A fleet's robot leaves from the loading spot (:meth:`loading`), holding it.
                 steps.append(Lease("loading_spot", False))
         if rides:
-            asked = leave is not None and self._near_elevator(floor, s)
             steps.extend(self._to_elevator(floor, s, goal, asked))
             steps.append(self._ride(floor_level, goal.floor, goal))
             floor = self.plan.floor(goal.floor)
             assert floor.elevator is not None
             s = floor.elevator.at_mm
             if self.parking is not None:
-                clear = self._clear_of_elevator(floor, s, goal)
+                clear, s = self._clear_of_elevator(floor, s, goal)
                 steps += clear
-                if isinstance(clear[0], Move) and clear[0].instruction.target_s_mm is not None:
-                    s = clear[0].instruction.target_s_mm
         steps.extend(self._along(floor, s, goal))
         return Route(steps)
 
@@ -263,18 +262,16 @@ class RoutePlanner:
             leases.append(Lease("loading_spot", True))
         return [*leases, Lease("elevator", True)]
 
-    def _clear_of_elevator(self, floor: Floor, s: float, goal: Place) -> list[Step]:
+    def _clear_of_elevator(self, floor: Floor, s: float, goal: Place) -> tuple[list[Step], float]:
         """Out of the car, a fleet's robot gives the elevator back once it is as far from
-        it as the next robot waits (at once if its goal is nearer)."""
+        it as the next robot waits (at once if its goal is nearer); and where it is then."""
         direction = 1.0 if goal.door.at_mm >= s else -1.0
         clear_at = s + direction * self._elevator_hold_mm
         if (goal.door.at_mm - clear_at) * direction <= 0:
-            return [Lease("elevator", False)]
+            return [Lease("elevator", False)], s
         lane = self.lane_mm(floor, direction)
-        return [
-            self._lane(floor, clear_at, lane, stop=False, detail="away from the elevator"),
-            Lease("elevator", False),
-        ]
+        away = self._lane(floor, clear_at, lane, stop=False, detail="away from the elevator")
+        return [away, Lease("elevator", False)], clear_at
 
     def _to_elevator(self, floor: Floor, s: float, goal: Place, asked: bool) -> list[Step]:
         """To the elevator's door; a fleet's robot holds short of it for its leases unless
@@ -292,11 +289,11 @@ class RoutePlanner:
             hold_at = elevator.at_mm - direction * self._elevator_hold_mm
             # On its own side, as close to the wall as a robot passing another: a robot
             # coming out of the car and going the other way passes it.
-            keep_right = passing_lane_mm(
+            waiting_lane = right_lane_mm(
                 floor, direction, self.motion.passing_wall_distance_mm, self.body_width_mm
             )
             if (hold_at - s) * direction > 0:
-                holds = [self._lane(floor, hold_at, keep_right, detail="short of the elevator")]
+                holds = [self._lane(floor, hold_at, waiting_lane, detail="short of the elevator")]
             else:
                 # Nearer already (out of an office beside it): square to the hallway, then
                 # into that lane along the way there is, up to ``hold_short_mm`` short of
@@ -309,7 +306,7 @@ class RoutePlanner:
                 holds = (
                     [
                         self._turn(floor, self.travel_deg(floor, direction), "along the hallway"),
-                        self._lane(floor, wait_at, keep_right, detail="short of the elevator"),
+                        self._lane(floor, wait_at, waiting_lane, detail="short of the elevator"),
                     ]
                     if (wait_at - s) * direction > 0
                     else []  # at the elevator already: it asks where it stands
