@@ -20,6 +20,15 @@ PLANNER = RoutePlanner(
     CONFIG.geometry.width_mm,
     pivot_mm=CONFIG.motor.axle_x_mm,
 )
+FLEET_ROBOT = RoutePlanner(
+    PLAN,
+    CONFIG.motion,
+    CONFIG.navigation,
+    CONFIG.geometry.width_mm,
+    pivot_mm=CONFIG.motor.axle_x_mm,
+    parking=PLAN.floor(2).parking[1],
+)
+"""A robot of a fleet, parked at the tea room's second spot."""
 
 
 def moves(route) -> list[Move]:
@@ -97,20 +106,12 @@ def test_route_back_to_base_parks_inside() -> None:
 
 def test_a_fleet_robot_coming_back_waits_for_the_loading_spot_short_of_the_door() -> None:
     """Not in the doorway: a robot driving out of the tea room must get past it."""
-    fleet_robot = RoutePlanner(
-        PLAN,
-        CONFIG.motion,
-        CONFIG.navigation,
-        CONFIG.geometry.width_mm,
-        pivot_mm=CONFIG.motor.axle_x_mm,
-        parking=PLAN.floor(2).parking[1],
-    )
     start = PLAN.find_room("209").door.at_mm
-    steps = fleet_robot.route(2, start, fleet_robot.base).steps
+    steps = FLEET_ROBOT.route(2, start, FLEET_ROBOT.base).steps
     ask = next(i for i, s in enumerate(steps) if s == Lease("loading_spot", True))
     before = steps[ask - 1]
     assert isinstance(before, Move) and before.instruction.stop
-    door = fleet_robot.base.door
+    door = FLEET_ROBOT.base.door
     short_by = door.at_mm - before.instruction.target_s_mm
     assert short_by >= CONFIG.navigation.hold_short_mm
     assert short_by - CONFIG.navigation.hold_short_mm < CONFIG.motor.axle_x_mm + 1
@@ -196,14 +197,6 @@ def test_the_way_to_the_elevator_keeps_right_and_pulls_over_near_it() -> None:
     assert lanes[0].target_s_mm == elevator.at_mm - CONFIG.navigation.pull_over_mm
 
 
-FLEET_ROBOT = RoutePlanner(
-    PLAN,
-    CONFIG.motion,
-    CONFIG.navigation,
-    CONFIG.geometry.width_mm,
-    pivot_mm=CONFIG.motor.axle_x_mm,
-    parking=PLAN.floor(2).parking[1],
-)
 HOLD_MM = max(CONFIG.navigation.pull_over_mm, CONFIG.navigation.hold_short_mm)
 
 
