@@ -225,6 +225,7 @@ async def drive(
                 break
         await clock.sleep(SAMPLE_S)
 
+    unfinished = sum((t := staff.orders.get(o)) is None or not t.status.final for o in placed)
     waits, delivered, failed = [], 0, []
     for order_id, placed_s in placed.items():
         times = staff.orders.get(order_id)
@@ -262,15 +263,13 @@ async def drive(
         "delivered": delivered,
         "delivered_per_h": round(delivered / (end_s / 3600), 1),
         "failed": failed,
-        "waiting_at_end": sum(
-            (t := staff.orders.get(o)) is None or not t.status.final for o in placed
-        ),
+        "waiting_at_end": unfinished,
         "wait_p50_s": percentile(waits, 50),
         "wait_p95_s": percentile(waits, 95),
         "elevator_rides": len(elevator),
         "elevator_wait_p95_s": percentile(elevator, 95),
         "contacts": contacts,
-        "lost": sum((t := staff.orders.get(o)) is None or not t.status.final for o in placed),
+        "lost": unfinished,  # after the broker-kill case's drain: orders that never ended
         "duplicated": sum(n > 1 for n in servers.values()),
         "dispatcher_cpu_pct_per_robot": round(
             100 * dispatcher_cpu_s / clock.now() / case.robots, 3
