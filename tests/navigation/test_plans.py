@@ -215,7 +215,7 @@ def test_a_fleet_robot_waits_for_the_elevator_in_the_tea_room_across_from_it() -
     assert steps.count(Lease("elevator", True)) == 1
 
 
-def test_a_fleet_robot_holds_short_of_the_elevator_in_its_keep_right_lane() -> None:
+def test_a_fleet_robot_holds_short_of_the_elevator_on_its_side_near_the_wall() -> None:
     """Coming along the hallway, it waits on its own side ``HOLD_MM`` short, close to the
     wall: a robot coming out of the car towards it passes it on the other side."""
     floor = PLAN.floor(3)
