@@ -266,9 +266,29 @@ def test_a_fleet_robot_beside_the_elevator_waits_for_it_in_its_own_lane() -> Non
     door = PLAN.find_room("313").door
     steps = FLEET_ROBOT.route(3, door.at_mm, FLEET_ROBOT.base).steps
     ask = steps.index(Lease("loading_spot", True))
-    square, hold = steps[ask - 2], steps[ask - 1]
-    assert isinstance(square, Move) and square.instruction.action == "turn"
-    assert square.instruction.heading_deg == FLEET_ROBOT.travel_deg(floor, 1.0)
+    along, hold, square = steps[ask - 3 : ask]
+    travel = FLEET_ROBOT.travel_deg(floor, 1.0)
+    assert isinstance(along, Move) and along.instruction.action == "turn"
+    assert along.instruction.heading_deg == travel
     assert isinstance(hold, Move) and hold.instruction.action == "follow_lane"
     assert hold.instruction.stop and hold.instruction.lane_mm == waiting_lane(floor)
+    assert hold.instruction.target_s_mm is not None
     assert door.at_mm < hold.instruction.target_s_mm < elevator.at_mm
+    # Over so short a way lane keeping ends askew: squared up where it stops.
+    assert isinstance(square, Move) and square.instruction.action == "turn"
+    assert square.instruction.heading_deg == travel
+
+
+def test_a_fleet_robot_changes_lanes_for_the_elevator_only_with_way_enough() -> None:
+    """Less than ``pull_over_mm`` short of the hold point (313 is 4 mm short of it), lane
+    keeping would stop before it changed lanes, leaving the robot in the way of a robot
+    coming out of the car: it takes the way from nearer the elevator instead."""
+    floor = PLAN.floor(3)
+    elevator = floor.elevator
+    assert elevator is not None
+    for start, squares in ((elevator.at_mm - HOLD_MM - 4.0, True), (5000.0, False)):
+        steps = FLEET_ROBOT.route(3, start, FLEET_ROBOT.base).steps
+        ask = steps.index(Lease("loading_spot", True))
+        last = steps[ask - 1]
+        assert isinstance(last, Move)
+        assert (last.instruction.action == "turn") is squares

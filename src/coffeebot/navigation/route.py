@@ -292,14 +292,19 @@ class RoutePlanner:
             waiting_lane = right_lane_mm(
                 floor, direction, self.motion.passing_wall_distance_mm, self.body_width_mm
             )
-            if (hold_at - s) * direction > 0:
-                holds = [self._lane(floor, hold_at, waiting_lane, detail="short of the elevator")]
+            if (hold_at - s) * direction >= self.nav.pull_over_mm:
+                # Way enough to change lanes on the way, as when pulling over to a door.
+                holds: list[Step] = [
+                    self._lane(floor, hold_at, waiting_lane, detail="short of the elevator")
+                ]
             else:
-                # Nearer already (out of an office beside it): square to the hallway, then
-                # into that lane along the way there is, up to ``hold_short_mm`` short of
-                # the turn, room for the robot coming out to turn into its lane (driven
-                # diagonally at it, the body faced the wall; over a short way, it ended
-                # askew, reaching into the other lane).
+                # Nearer (out of an office beside it, 313 4 mm short of the hold point:
+                # a lane of 4 mm left it in the way of the robot coming out of the car):
+                # square to the hallway, then into that lane along the way there is, up to
+                # ``hold_short_mm`` short of the turn, room for the robot coming out to turn
+                # into its lane, and square again there (lane keeping over so short a way
+                # stops ~100 mm short of the lane, askew). Driven diagonally at the lane, the
+                # front sensors read the wall near enough to stop it mid-hallway.
                 wait_at = self.turn_point_mm(elevator, direction) - direction * (
                     self.nav.hold_short_mm
                 )
@@ -307,6 +312,7 @@ class RoutePlanner:
                     [
                         self._turn(floor, self.travel_deg(floor, direction), "along the hallway"),
                         self._lane(floor, wait_at, waiting_lane, detail="short of the elevator"),
+                        self._turn(floor, self.travel_deg(floor, direction), "square to the lane"),
                     ]
                     if (wait_at - s) * direction > 0
                     else []  # at the elevator already: it asks where it stands
