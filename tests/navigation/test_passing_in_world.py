@@ -1,5 +1,7 @@
 """Two robots meeting head-on in the floor-2 hallway, each in its keep-right lane, on the
-simulated world: with each other's poses as traffic they pass; without, they do not."""
+simulated world: with each other's poses as traffic they pass; without, they do not. And a
+robot passes one that stands waiting beside its passing lane, as it waits for the elevator,
+the standing robot marked as its outline from the traffic (``test_others.py``)."""
 
 from __future__ import annotations
 
@@ -35,7 +37,7 @@ class Meeting:
     contacts: int
 
 
-def seen_as_traffic(name: str, robot: WorldRobot) -> Traffic:
+def seen_as_traffic(name: str, robot: WorldRobot, moving: bool) -> Traffic:
     """What the dispatcher would tell the other robot of this one."""
     pose = true_pose(robot)
     other = OtherRobot(
@@ -44,20 +46,28 @@ def seen_as_traffic(name: str, robot: WorldRobot) -> Traffic:
         x_mm=pose.x_mm,
         y_mm=pose.y_mm,
         heading_deg=pose.heading_deg,
-        moving=True,
+        moving=moving,
         reported_at_s=0.0,
         age_s=0.0,
     )
     return Traffic(robots=[other])
 
 
-def meet(traffic: bool, max_time_s: float) -> Meeting:
+STANDING_D_MM = 361.0
+"""Where a robot that drove across the hallway to its waiting lane short of the elevator
+(445 mm off the axis) stood, squared up, in the fleet's simulation."""
+
+
+def meet(traffic: bool, max_time_s: float, b_stands: bool = False) -> Meeting:
     """Robot a from s=13 m going +s, robot b from s=21 m going -s, each in its lane, each
-    with its own motion module and collision monitor fed ground truth (as ``drive`` does)."""
+    with its own motion module and collision monitor fed ground truth (as ``drive`` does).
+    ``b_stands``: b stands still on its side ``STANDING_D_MM`` off the axis instead."""
     h = FLOOR.hallway.heading_deg
     lane_a, lane_b = PLANNER.lane_mm(FLOOR, 1.0), PLANNER.lane_mm(FLOOR, -1.0)
     xa, ya = FLOOR.from_hallway(13000, lane_a)
-    xb, yb = FLOOR.from_hallway(21000, lane_b)
+    xb, yb = FLOOR.from_hallway(21000 if not b_stands else 17000, lane_b)
+    if b_stands:
+        xb, yb = FLOOR.from_hallway(17000, STANDING_D_MM)
     world = World(
         PLAN, RobotSpec.from_config(CONFIG), floor=2, pose=Pose(xa, ya, h), obstacles=[], seed=3
     )
@@ -78,14 +88,15 @@ def meet(traffic: bool, max_time_s: float) -> Meeting:
         )
         for _ in robots
     ]
-    done = [False, False]
+    done = [False, b_stands]
     seq = 0
     while world.t_s < max_time_s and not all(done):
         seq += 1
         if traffic and seq % 10 == 1:  # twice a second
             for i in (0, 1):
                 modules[i].controller.note_traffic(
-                    seen_as_traffic(names[1 - i], robots[1 - i]), world.t_s
+                    seen_as_traffic(names[1 - i], robots[1 - i], moving=not done[1 - i]),
+                    world.t_s,
                 )
         for i, robot in enumerate(robots):
             if done[i]:
@@ -95,7 +106,15 @@ def meet(traffic: bool, max_time_s: float) -> Meeting:
             scan = RangeScan(cycle_start_s=world.t_s, cycle_time_s=DT, readings=readings)
             pose = true_pose(robot)
             module, ins = modules[i], instructions[i]
-            module.costmap.update(scan, FLOOR, pose.x_mm, pose.y_mm, pose.heading_deg, world.t_s)
+            module.costmap.update(
+                scan,
+                FLOOR,
+                pose.x_mm,
+                pose.y_mm,
+                pose.heading_deg,
+                world.t_s,
+                robots=module.controller.standing_robots(FLOOR.level, world.t_s),
+            )
             explain = explainer(FLOOR, pose, CONFIG.motion.wall_margin_mm)
             yaw_rate = math.degrees(robot.body.state.yaw_rate_rad_s)
             verdict = monitors[i].update(scan, pose.speed_mm_s, seq, yaw_rate, explain)
@@ -136,4 +155,10 @@ def test_with_traffic_both_pass_in_their_passing_lanes() -> None:
 def test_without_traffic_they_do_not_both_get_past() -> None:
     meeting = meet(traffic=False, max_time_s=60.0)
     assert meeting.done != [True, True]
+    assert meeting.contacts == 0
+
+
+def test_with_traffic_it_passes_a_robot_standing_by_its_passing_lane() -> None:
+    meeting = meet(traffic=True, max_time_s=60.0, b_stands=True)
+    assert meeting.done[0]
     assert meeting.contacts == 0

@@ -198,6 +198,7 @@ class MotionModule(Module):
                     ctx.clock.now(),
                     heading_error_deg=self.cfg.clear_heading_sigmas * pose.sigma_heading_deg
                     + abs(pose.yaw_rate_dps) * self.cfg.pose_lag_s,
+                    robots=self.controller.standing_robots(pose.floor, ctx.clock.now()),
                 )
 
     async def _watch_traffic(self, ctx: ModuleContext) -> None:

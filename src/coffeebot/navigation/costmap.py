@@ -40,7 +40,7 @@ robot waits for them instead of steering around them.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -48,9 +48,10 @@ import numpy as np
 from coffeebot.config import CollisionConfig, MotionConfig, TofSensorConfig
 from coffeebot.floorplan import Floor, segment_distances
 from coffeebot.messages import NOTHING_IN_RANGE, RangeReading, RangeScan, ReadingStatus
+from coffeebot.navigation.others import outline_points
 from coffeebot.perception.collision import narrow_returns, near_end_mm
 from coffeebot.perception.geometry import sensor_origin
-from coffeebot.perception.walls import wall_ranges
+from coffeebot.perception.walls import segment_ranges, wall_ranges
 
 MAX_MARK_MM = 1500.0
 """Readings beyond this are too noisy to mark (seed 000: noise above ~1000 mm in mid mode)."""
@@ -185,16 +186,21 @@ class LocalCostmap:
         heading_deg: float,
         now: float,
         heading_error_deg: float = 0.0,
+        robots: Sequence[np.ndarray] = (),
     ) -> None:
         """Clear each cone up to its reading and mark the arc at the reading. The pose's
         heading may be off by ``heading_error_deg``: only the part of each cone it looks
-        through whatever the error is cleared."""
+        through whatever the error is cleared. ``robots``: the outlines of the fleet's
+        robots standing nearby (:mod:`coffeebot.navigation.others`); a reading one of them
+        explains marks that outline instead of its arc."""
         self._recentre(floor, x_mm, y_mm)
         narrowed = max(0.0, self.half_fov_deg - heading_error_deg)
         clear_spread = np.radians(np.linspace(-narrowed, narrowed, self._rays))
         readings = {r.sensor: r for r in scan.readings}
         walls = self._explained(floor, readings, x_mm, y_mm, heading_deg)
-        narrow = self._poles({i: r for i, r in readings.items() if i not in walls})
+        seen, robot_read = self._robots_seen(robots, readings, walls, x_mm, y_mm, heading_deg)
+        explained = walls | robot_read
+        narrow = self._poles({i: r for i, r in readings.items() if i not in explained})
         # Every cone is cleared and then every arc marked, each in one go: a cell's state
         # after the update is the same in any order (a cell both cleared and marked now is
         # not occupied), and numpy's cost is in the calls, not the points.
@@ -226,12 +232,17 @@ class LocalCostmap:
                 clear = math.radians(look) + clear_spread
                 clear_x.append(sx + np.outer(np.cos(clear), steps).ravel())
                 clear_y.append(sy + np.outer(np.sin(clear), steps).ravel())
-            if distance is None or distance > MAX_MARK_MM or sensor.id in walls:
-                continue  # nothing there, too far to mark, or the plan's walls explain it
+            if distance is None or distance > MAX_MARK_MM or sensor.id in explained:
+                continue  # nothing there, too far to mark, or a wall or robot explains it
             angles = math.radians(look) + self._spread
             mark_x.append(sx + distance * np.cos(angles))
             mark_y.append(sy + distance * np.sin(angles))
             mark_pole.append(np.full(len(angles), sensor.id in narrow))
+        for outline in seen:
+            xs, ys = outline_points(outline, self.res / 2.0)
+            mark_x.append(xs)
+            mark_y.append(ys)
+            mark_pole.append(np.zeros(len(xs), dtype=bool))
         if clear_x:
             i, j = self._cells(np.concatenate(clear_x), np.concatenate(clear_y))
             self.clear_t[i, j] = now
@@ -244,17 +255,12 @@ class LocalCostmap:
             self.pole_t[i[pole], j[pole]] = now
             self.hit_t[i, j] = now
 
-    def _explained(
-        self,
-        floor: Floor,
-        readings: dict[int, RangeReading],
-        x_mm: float,
-        y_mm: float,
-        heading_deg: float,
-    ) -> frozenset[int]:
-        """The sensors whose valid reading the plan's walls explain: some ray of the cone,
-        widened by ``wall_heading_tolerance_deg``, meets a wall within ``wall_margin_mm`` of
-        it (every sensor's rays cast at once)."""
+    def _explaining_rays(
+        self, readings: dict[int, RangeReading], x_mm: float, y_mm: float, heading_deg: float
+    ) -> tuple[list[int], np.ndarray, np.ndarray, np.ndarray]:
+        """The sensors with a valid reading near enough to mark, each one's origin (n, 2),
+        the rays of its cone widened by ``wall_heading_tolerance_deg`` (n, r), and how far
+        something may lie along them to explain the reading, ``wall_margin_mm`` beyond it."""
         ids, origins, angles, reach = [], [], [], []
         for sensor in self.sensors:
             reading = readings.get(sensor.id)
@@ -267,11 +273,55 @@ class LocalCostmap:
             origins.append((sx, sy))
             angles.append(math.radians(look) + self._explain)
             reach.append(reading.distance_mm + self.cfg.wall_margin_mm)
+        return (
+            ids,
+            np.array(origins, dtype=float).reshape(-1, 2),
+            np.array(angles, dtype=float).reshape(len(ids), len(self._explain)),
+            np.array(reach, dtype=float),
+        )
+
+    def _explained(
+        self,
+        floor: Floor,
+        readings: dict[int, RangeReading],
+        x_mm: float,
+        y_mm: float,
+        heading_deg: float,
+    ) -> frozenset[int]:
+        """The sensors whose valid reading the plan's walls explain: some ray of the cone,
+        widened by ``wall_heading_tolerance_deg``, meets a wall within ``wall_margin_mm`` of
+        it (every sensor's rays cast at once)."""
+        ids, origins, angles, reach = self._explaining_rays(readings, x_mm, y_mm, heading_deg)
         if not ids:
             return frozenset()
-        limit = np.array(reach, dtype=float)
-        wall = wall_ranges(floor, np.array(origins), np.array(angles), limit).min(axis=1)
-        return frozenset(i for i, explained in zip(ids, wall <= limit, strict=True) if explained)
+        wall = wall_ranges(floor, origins, angles, reach).min(axis=1)
+        return frozenset(i for i, explained in zip(ids, wall <= reach, strict=True) if explained)
+
+    def _robots_seen(
+        self,
+        robots: Sequence[np.ndarray],
+        readings: dict[int, RangeReading],
+        walls: frozenset[int],
+        x_mm: float,
+        y_mm: float,
+        heading_deg: float,
+    ) -> tuple[list[np.ndarray], frozenset[int]]:
+        """The robot outlines that explain some reading no wall does, as a wall would, and
+        the sensors whose reading they explain."""
+        if not robots:
+            return [], frozenset()
+        ids, origins, angles, reach = self._explaining_rays(
+            {i: r for i, r in readings.items() if i not in walls}, x_mm, y_mm, heading_deg
+        )
+        seen: list[np.ndarray] = []
+        read: set[int] = set()
+        for outline in robots if ids else ():
+            ranges = segment_ranges(outline, origins, angles, reach).min(axis=1)
+            hits = {i for i, hit in zip(ids, ranges <= reach, strict=True) if hit}
+            if hits:
+                seen.append(outline)
+                read |= hits
+        return seen, frozenset(read)
 
     def _poles(self, readings: dict[int, RangeReading]) -> frozenset[int]:
         """The front sensors whose return is a pole: narrow (the collision monitor's rule:

@@ -39,6 +39,7 @@ from coffeebot.navigation.control import (
 from coffeebot.navigation.costmap import Footprint, LocalCostmap
 from coffeebot.navigation.detour import DetourPlanner, Phase, Sighting
 from coffeebot.navigation.dwa import DynamicWindow, rollout
+from coffeebot.navigation.others import standing_outlines
 from coffeebot.navigation.passing import oncoming, right_lane_mm
 from coffeebot.perception.geometry import wrap_deg
 
@@ -93,6 +94,19 @@ class MotionController:
     def note_traffic(self, traffic: Traffic, now: float) -> None:
         """Where the fleet's other robots are, as the dispatcher said at ``now``."""
         self._traffic, self._traffic_at = traffic, now
+
+    def standing_robots(self, floor_level: int, now: float) -> list[np.ndarray]:
+        """The outlines of the fleet's other robots standing on ``floor_level``, for the
+        costmap (none without a fleet)."""
+        if self._traffic is None:
+            return []
+        return standing_outlines(
+            self._traffic.robots,
+            floor_level,
+            self.footprint.length_mm,
+            self.footprint.width_mm,
+            age_s=max(0.0, now - self._traffic_at),
+        )
 
     def halt(self) -> None:
         """The safety gate stopped the motors: plan from standstill when it lets go."""

@@ -32,7 +32,6 @@ def wall_ranges(
     ``angles`` (n, r), inf where there is none within its ``reach_mm`` (n,). All origins are
     cast in one go, and walls whose bounding box lies beyond every reach not at all: the
     question is asked for every sensor every scan, and few of a floor's walls are that close."""
-    x, y = origins[:, 0, None, None], origins[:, 1, None, None]  # (n, 1, 1)
     reach = np.broadcast_to(np.asarray(reach_mm, dtype=float), (len(origins),))
     seg = floor.segment_array
     if seg.size and len(origins) and np.isfinite(reach).all():
@@ -44,8 +43,18 @@ def wall_ranges(
             & (box[:, 3] >= (origins[:, 1] - reach).min())
         )
         seg = seg[close]
+    return segment_ranges(seg, origins, angles, reach)
+
+
+def segment_ranges(
+    seg: np.ndarray, origins: np.ndarray, angles: np.ndarray, reach: np.ndarray
+) -> np.ndarray:
+    """Range (n, r) from each origin (n, 2) to the first of the segments ``seg`` (k, 4:
+    x0, y0, x1, y1) along each of its rays ``angles`` (n, r), inf where there is none within
+    its ``reach`` (n,)."""
     if seg.size == 0:
         return np.full(np.shape(angles), math.inf)
+    x, y = origins[:, 0, None, None], origins[:, 1, None, None]  # (n, 1, 1)
     dx, dy = np.cos(angles)[..., None], np.sin(angles)[..., None]  # (n, r, 1)
     ex, ey = seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1]  # (k,)
     wx, wy = seg[:, 0] - x, seg[:, 1] - y  # (n, 1, k)
