@@ -8,6 +8,7 @@ from helpers import CONFIG, PLAN, estimate_at
 
 from coffeebot.messages import MoveInstruction, OtherRobot, Traffic
 from coffeebot.modules.motion import MotionModule
+from coffeebot.navigation.motion import MotionController
 from coffeebot.navigation.passing import LOOKAHEAD_MM, MAX_AGE_S, oncoming, right_lane_mm
 from coffeebot.navigation.route import RoutePlanner
 
@@ -94,24 +95,45 @@ def test_the_passing_lane_is_on_the_right_at_its_wall_distance() -> None:
         assert abs(lane) > abs(keep_right)
 
 
-def lane_keeping(lane_mm: float, to_s: float, traffic: bool = True) -> str | None:
-    """Whom the passing lane is kept for after one period in the lane at ``ME_S``."""
+def lane_keeping(
+    lane_mm: float, to_s: float, traffic: OtherRobot | None = None
+) -> MotionController:
+    """The controller after one period in the lane at ``ME_S`` (another robot coming the other
+    way 4 m ahead unless ``traffic`` says otherwise)."""
     module = MotionModule(CONFIG, PLAN)
-    if traffic:
-        module.controller.note_traffic(Traffic(robots=[other(17000)]), 0.0)
+    if traffic is not None:
+        module.controller.note_traffic(Traffic(robots=[traffic]), 0.0)
     x, y = FLOOR.from_hallway(ME_S, lane_mm)
     instruction = MoveInstruction(
         id=1, action="follow_lane", floor=2, target_s_mm=to_s, lane_mm=lane_mm
     )
     module.controller.step(instruction, estimate_at(2, x, y, HEADING), 0.5, 0.05, 500.0)
-    return module.controller.passing
+    return module.controller
 
 
-def test_motion_keeps_the_passing_lane_only_in_place_of_a_keep_right_lane() -> None:
-    planner = RoutePlanner(PLAN, CONFIG.motion, CONFIG.navigation, CONFIG.geometry.width_mm)
-    keep_right = planner.lane_mm(FLOOR, 1.0)
-    assert lane_keeping(keep_right, 24000) == "robot-2"
-    assert lane_keeping(keep_right, 24000, traffic=False) is None
-    assert lane_keeping(-keep_right, 24000) is None, "pulled over to a door on the left"
+PLANNER = RoutePlanner(PLAN, CONFIG.motion, CONFIG.navigation, CONFIG.geometry.width_mm)
+KEEP_RIGHT = PLANNER.lane_mm(FLOOR, 1.0)
+
+
+def test_motion_keeps_the_passing_lane_in_place_of_a_keep_right_lane() -> None:
+    coming = other(17000)
+    assert lane_keeping(KEEP_RIGHT, 24000, coming).passing == "robot-2"
+    assert lane_keeping(KEEP_RIGHT, 24000).passing is None
     stop_near = ME_S + CONFIG.motion.approach_mm - 100
-    assert lane_keeping(keep_right, stop_near) is None, "the last stretch before a stop"
+    assert lane_keeping(KEEP_RIGHT, stop_near, coming).passing is None, "the last stretch"
+    assert not lane_keeping(KEEP_RIGHT, 24000, coming).yielding
+
+
+def test_crossing_to_a_door_on_the_left_it_waits_for_a_robot_driving_towards_it() -> None:
+    """Pulling over to a door on the left would put it in the lane of a robot coming the
+    other way: it keeps to its passing lane and stops ``approach_mm`` short of the door
+    until that one is by."""
+    door_at = ME_S + CONFIG.motion.approach_mm + 1.0
+    controller = lane_keeping(-KEEP_RIGHT, door_at, other(17000))
+    assert controller.passing == "robot-2" and controller.yielding
+    assert controller.speed == 0.0
+    further = lane_keeping(-KEEP_RIGHT, door_at + 3000, other(17000))
+    assert further.yielding and further.speed > 0.0, "it drives on up to that point"
+    standing = lane_keeping(-KEEP_RIGHT, door_at, other(17000, moving=False))
+    assert standing.passing is None and not standing.yielding, "one standing is gone round"
+    assert lane_keeping(-KEEP_RIGHT, door_at).passing is None

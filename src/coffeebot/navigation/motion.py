@@ -90,6 +90,8 @@ class MotionController:
         self._traffic_at = 0.0
         self.passing: str | None = None
         """The robot the passing lane is kept for, if any."""
+        self.yielding = False
+        """Kept to the passing lane short of crossing the hallway until ``passing`` is by."""
 
     def note_traffic(self, traffic: Traffic, now: float) -> None:
         """Where the fleet's other robots are, as the dispatcher said at ``now``."""
@@ -284,6 +286,12 @@ class MotionController:
             approach_mm=approach,
             approach_mm_s=cfg.approach_speed_mm_s,
         )
+        if self.yielding:
+            gap = remaining - cfg.approach_mm
+            target = min(target, self.profile.target(gap, cruise))
+            if target <= 0:
+                why = f"letting {self.passing} pass before crossing the hallway"
+                status = self._status(ins.id, MotionState.WAITING, now, remaining, why)
         sighting = self.detour.update(floor, s, d, lane, direction, ins.avoid, now)
         detour_lane = self.detour.lane_mm
         if self.detour.phase is Phase.CONFIRMING and sighting is not None:
@@ -317,10 +325,12 @@ class MotionController:
         remaining: float,
         now: float,
     ) -> float:
-        """The instruction's lane, or the passing lane while another robot comes: only in
-        place of a keep-right lane (not the door side's), and not over the last
-        ``approach_mm`` before a stop."""
-        self.passing = None
+        """The instruction's lane, or the passing lane while another robot comes: in place
+        of a keep-right lane, not over the last ``approach_mm`` before a stop; in place of a
+        lane across the hallway (to a door on the left) while a robot drives towards this
+        one, which then waits ``approach_mm`` short of its stop (``yielding``) rather than
+        cross in front of it."""
+        self.passing, self.yielding = None, False
         if ins.lane_mm is None:
             return d
         passing = right_lane_mm(
@@ -328,8 +338,8 @@ class MotionController:
         )
         keeps_right = ins.lane_mm * direction < 0
         nearer_wall = abs(passing) > abs(ins.lane_mm)
-        stopping = ins.stop and remaining <= self.cfg.approach_mm
-        if self._traffic is None or not keeps_right or not nearer_wall or stopping:
+        before_stop = not ins.stop or remaining > self.cfg.approach_mm
+        if self._traffic is None or not before_stop or (keeps_right and not nearer_wall):
             return ins.lane_mm
         self.passing = oncoming(
             self._traffic.robots,
@@ -338,7 +348,9 @@ class MotionController:
             direction,
             passed_mm=self.footprint.length_mm,
             age_s=max(0.0, now - self._traffic_at),
+            standing=keeps_right,
         )
+        self.yielding = self.passing is not None and not keeps_right
         return ins.lane_mm if self.passing is None else passing
 
     def _go_round(

@@ -38,13 +38,15 @@ def oncoming(
     direction: float,
     passed_mm: float,
     age_s: float = 0.0,
+    standing: bool = True,
 ) -> str | None:
     """The first robot that calls for the passing lane of a robot at ``s_mm`` along
     ``floor``'s hallway travelling towards ``direction`` (+1/-1 in s), if any: on this floor,
     in the hallway (not in a room or a door recess), ahead within ``LOOKAHEAD_MM`` or not yet
     ``passed_mm`` behind, and coming the other way or standing (one driving the same way is
     followed, and one in the way is gone round, as any obstacle). ``age_s``: how old the
-    traffic message is, added to each robot's own age."""
+    traffic message is, added to each robot's own age; ``standing``: whether one standing
+    counts."""
     half_width = floor.hallway.width_mm / 2
     travel = floor.hallway.heading_deg + (0.0 if direction > 0 else 180.0)
     for other in others:
@@ -55,7 +57,7 @@ def oncoming(
         if abs(d) > half_width or not -passed_mm < ahead <= LOOKAHEAD_MM:
             continue
         facing = math.cos(math.radians(other.heading_deg - travel))
-        if facing <= ONCOMING_COS or not other.moving:
+        if (facing <= ONCOMING_COS and other.moving) or (standing and not other.moving):
             return other.robot
     return None
 
