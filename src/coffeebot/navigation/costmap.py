@@ -56,6 +56,10 @@ from coffeebot.perception.walls import segment_ranges, wall_ranges
 MAX_MARK_MM = 1500.0
 """Readings beyond this are too noisy to mark (seed 000: noise above ~1000 mm in mid mode)."""
 
+Rays = tuple[list[int], np.ndarray, np.ndarray, np.ndarray]
+"""The sensors asked whether something explains their reading: ids, origins (n, 2), the rays
+of each widened cone (n, r), and how far along them it may lie (n,)."""
+
 EXPLAIN_RAYS = 15
 """Rays sampled across the widened cone when asking whether the plan's walls explain a
 reading: finer than the marking, since a grazing wall is met only near the cone's edge."""
@@ -197,8 +201,9 @@ class LocalCostmap:
         narrowed = max(0.0, self.half_fov_deg - heading_error_deg)
         clear_spread = np.radians(np.linspace(-narrowed, narrowed, self._rays))
         readings = {r.sensor: r for r in scan.readings}
-        walls = self._explained(floor, readings, x_mm, y_mm, heading_deg)
-        seen, robot_read = self._robots_seen(robots, readings, walls, x_mm, y_mm, heading_deg)
+        rays = self._explaining_rays(readings, x_mm, y_mm, heading_deg)
+        walls = self._explained(floor, rays)
+        seen, robot_read = self._robots_seen(robots, rays, walls)
         explained = walls | robot_read
         narrow = self._poles({i: r for i, r in readings.items() if i not in explained})
         # Every cone is cleared and then every arc marked, each in one go: a cell's state
@@ -257,7 +262,7 @@ class LocalCostmap:
 
     def _explaining_rays(
         self, readings: dict[int, RangeReading], x_mm: float, y_mm: float, heading_deg: float
-    ) -> tuple[list[int], np.ndarray, np.ndarray, np.ndarray]:
+    ) -> Rays:
         """The sensors with a valid reading near enough to mark, each one's origin (n, 2),
         the rays of its cone widened by ``wall_heading_tolerance_deg`` (n, r), and how far
         something may lie along them to explain the reading, ``wall_margin_mm`` beyond it."""
@@ -280,42 +285,33 @@ class LocalCostmap:
             np.array(reach, dtype=float),
         )
 
-    def _explained(
-        self,
-        floor: Floor,
-        readings: dict[int, RangeReading],
-        x_mm: float,
-        y_mm: float,
-        heading_deg: float,
-    ) -> frozenset[int]:
+    def _explained(self, floor: Floor, rays: Rays) -> frozenset[int]:
         """The sensors whose valid reading the plan's walls explain: some ray of the cone,
         widened by ``wall_heading_tolerance_deg``, meets a wall within ``wall_margin_mm`` of
         it (every sensor's rays cast at once)."""
-        ids, origins, angles, reach = self._explaining_rays(readings, x_mm, y_mm, heading_deg)
+        ids, origins, angles, reach = rays
         if not ids:
             return frozenset()
         wall = wall_ranges(floor, origins, angles, reach).min(axis=1)
         return frozenset(i for i, explained in zip(ids, wall <= reach, strict=True) if explained)
 
+    @staticmethod
     def _robots_seen(
-        self,
         robots: Sequence[np.ndarray],
-        readings: dict[int, RangeReading],
+        rays: Rays,
         walls: frozenset[int],
-        x_mm: float,
-        y_mm: float,
-        heading_deg: float,
     ) -> tuple[list[np.ndarray], frozenset[int]]:
         """The robot outlines that explain some reading no wall does, as a wall would, and
         the sensors whose reading they explain."""
-        if not robots:
+        ids, origins, angles, reach = rays
+        unexplained = np.array([i not in walls for i in ids], dtype=bool)
+        if not robots or not unexplained.any():
             return [], frozenset()
-        ids, origins, angles, reach = self._explaining_rays(
-            {i: r for i, r in readings.items() if i not in walls}, x_mm, y_mm, heading_deg
-        )
+        ids = [i for i, keep in zip(ids, unexplained, strict=True) if keep]
+        origins, angles, reach = origins[unexplained], angles[unexplained], reach[unexplained]
         seen: list[np.ndarray] = []
         read: set[int] = set()
-        for outline in robots if ids else ():
+        for outline in robots:
             ranges = segment_ranges(outline, origins, angles, reach).min(axis=1)
             hits = {i for i, hit in zip(ids, ranges <= reach, strict=True) if hit}
             if hits:
