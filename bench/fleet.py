@@ -62,6 +62,7 @@ from coffeebot.config import RobotConfig, load_robot_config
 from coffeebot.cpu import BOARD_NAME
 from coffeebot.fleet.mosquitto import DISPATCHER_USER, Mosquitto, mosquitto
 from coffeebot.floorplan import load_floorplan
+from coffeebot.logs import LogfmtFormatter, RobotTag
 from coffeebot.messages import DELIVERY_STATUS, LEASE_NEED, OrderStatus
 from coffeebot.modules.base import Module, ModuleContext
 from coffeebot.runtime.fleet import FleetSim, build_fleet_sim, robot_ids, serve_fleet
@@ -325,12 +326,11 @@ def run_case_in_process(case: Case, log_dir: Path | None) -> dict[str, Any]:
         name = f"{case.robots}x{case.orders_per_h:g}-{case.strategy}" + (
             "-broker-kill" if case.broker_kill else ""
         )
-        logging.basicConfig(
-            filename=log_dir / f"{name}.log",
-            level=logging.INFO,
-            format="%(asctime)s %(name)s %(levelname)s %(message)s",
-            force=True,  # a worker process runs several cases: each its own file
-        )
+        handler = logging.FileHandler(log_dir / f"{name}.log")
+        handler.setFormatter(LogfmtFormatter())
+        handler.addFilter(RobotTag())  # whose daemon logged each line
+        # A worker process runs several cases: each its own file.
+        logging.basicConfig(handlers=[handler], level=logging.INFO, force=True)
     return asyncio.run(run_case(case))
 
 

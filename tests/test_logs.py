@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import io
 import logging
 import os
@@ -9,7 +10,15 @@ import tempfile
 
 import pytest
 
-from coffeebot.logs import Event, LogfmtFormatter, Transitions, attached_to_journal, log_event
+from coffeebot.logs import (
+    ROBOT,
+    Event,
+    LogfmtFormatter,
+    RobotTag,
+    Transitions,
+    attached_to_journal,
+    log_event,
+)
 
 
 @pytest.fixture
@@ -102,3 +111,24 @@ def test_journal_stream_is_recognised_by_device_and_inode():
         assert attached_to_journal(stream, {"JOURNAL_STREAM": f"{stat.st_dev}:{stat.st_ino}"})
         assert not attached_to_journal(stream, {"JOURNAL_STREAM": f"{stat.st_dev}:1"})
         assert not attached_to_journal(stream, {})
+
+
+async def test_a_robots_tasks_name_it_in_their_lines(captured: tuple[logging.Logger, io.StringIO]):
+    """Two daemons in one process: a task inherits the robot of the task that started it."""
+    logger, stream = captured
+    logger.handlers[0].addFilter(RobotTag())
+
+    async def daemon(robot: str) -> None:
+        ROBOT.set(robot)
+
+        async def module() -> None:
+            await asyncio.sleep(0)
+            logger.info("motion idle -> moving")
+
+        await asyncio.gather(module(), module())
+
+    await asyncio.gather(daemon("robot-1"), daemon("robot-2"))
+    logger.info("dispatcher line")
+    robots = [line.rsplit(" ", 1)[-1] for line in lines(stream)]
+    assert sorted(robots[:4]) == ["robot=robot-1"] * 2 + ["robot=robot-2"] * 2
+    assert "robot=" not in lines(stream)[4]

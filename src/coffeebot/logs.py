@@ -13,6 +13,7 @@ import os
 import sys
 import time
 from collections.abc import Hashable, Mapping
+from contextvars import ContextVar
 from enum import StrEnum
 from typing import TextIO
 
@@ -27,6 +28,23 @@ _SYSLOG_PRIORITY = {
     logging.INFO: 6,
     logging.DEBUG: 7,
 }
+
+
+ROBOT: ContextVar[str | None] = ContextVar("robot", default=None)
+"""The robot whose daemon the running task belongs to, where one process runs several (a
+simulated fleet); its tasks inherit it from the task that starts the daemon."""
+
+
+class RobotTag(logging.Filter):
+    """Puts ``robot=<id>`` on the records logged by a robot's tasks in a process that runs
+    several daemons (:data:`ROBOT`): their modules share the loggers, and a line that does
+    not say which robot waited or went round cannot be read back."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        robot = ROBOT.get()
+        if robot is not None:
+            record.robot = robot
+        return True
 
 
 class Event(StrEnum):
@@ -152,6 +170,7 @@ class StderrHandler(logging.StreamHandler[TextIO]):
 def setup_logging(level: str = "INFO") -> None:
     handler = StderrHandler()
     handler.setFormatter(LogfmtFormatter(syslog_prefix=attached_to_journal(sys.stderr)))
+    handler.addFilter(RobotTag())
     root = logging.getLogger()
     root.handlers[:] = [handler]
     root.setLevel(level)

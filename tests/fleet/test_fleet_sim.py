@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
 import math
 import time
 from collections.abc import AsyncIterator
@@ -26,6 +27,7 @@ import pytest_asyncio
 from coffeebot.config import load_robot_config
 from coffeebot.fleet.mosquitto import mosquitto
 from coffeebot.floorplan import load_floorplan
+from coffeebot.logs import RobotTag
 from coffeebot.messages import OrderStatus
 from coffeebot.runtime.fleet import FleetSim, build_fleet_sim, robot_ids, serve_fleet
 from coffeebot.scenario.spec import Staff
@@ -64,6 +66,19 @@ class FleetRun:
     samples: list[Sample] = field(default_factory=list)
     contacts: list[str] = field(default_factory=list)
     ended: str = ""
+    motion_log: list[logging.LogRecord] = field(default_factory=list)
+    """The robots' motion lines (state changes), as a handler tagging them sees them."""
+
+
+class Kept(logging.Handler):
+    """Keeps the records it handles (after its filters)."""
+
+    def __init__(self, into: list[logging.LogRecord]) -> None:
+        super().__init__(logging.INFO)
+        self.into = into
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.into.append(record)
 
 
 def pose_of(robot: WorldRobot) -> tuple[float, float, float, int]:
@@ -71,8 +86,7 @@ def pose_of(robot: WorldRobot) -> tuple[float, float, float, int]:
     return (pose.x_mm, pose.y_mm, pose.heading_deg, robot.floor_level)
 
 
-async def drive(fleet: FleetSim, staff: StaffModule) -> FleetRun:
-    run = FleetRun()
+async def drive(fleet: FleetSim, staff: StaffModule, run: FleetRun) -> FleetRun:
     orders = fleet.dispatcher.module
     shared = fleet.world
 
@@ -114,7 +128,16 @@ async def drive(fleet: FleetSim, staff: StaffModule) -> FleetRun:
 async def fleet_run() -> AsyncIterator[FleetRun]:
     names = robot_ids(2)
     staff = StaffModule(Staff(load_after_s=3.0, pickup_after_s=5.0))
-    with mosquitto(names) as broker:
+    run = FleetRun()
+    kept = Kept(run.motion_log)
+    kept.addFilter(RobotTag())
+    motion = logging.getLogger("coffeebot.module.motion")
+    level = motion.level
+    motion.addHandler(kept)
+    motion.setLevel(logging.INFO)
+    with contextlib.ExitStack() as restore, mosquitto(names) as broker:
+        restore.callback(motion.setLevel, level)
+        restore.callback(motion.removeHandler, kept)
         async with build_fleet_sim(
             BOARD,
             PLAN,
@@ -127,7 +150,7 @@ async def fleet_run() -> AsyncIterator[FleetRun]:
         ) as fleet:
             serving = asyncio.create_task(serve_fleet(fleet))
             try:
-                yield await drive(fleet, staff)
+                yield await drive(fleet, staff, run)
             finally:
                 fleet.request_stop("test over")
                 await asyncio.wait_for(serving, 60)
@@ -153,3 +176,11 @@ async def test_the_loading_spot_holds_one_robot_at_a_time(fleet_run: FleetRun) -
     assert max(visits) == 1, "both robots stood on the loading spot at once"
     loaded_by = {i for s in fleet_run.samples for i, p in enumerate(s.poses) if at_spot(p)}
     assert loaded_by == {0, 1}, "one of the robots never loaded"
+
+
+@pytest.mark.asyncio(loop_scope="module")
+async def test_each_robots_log_lines_name_it(fleet_run: FleetRun) -> None:
+    """Both daemons log through the same loggers in one process: each line says whose it
+    is, or a run's log cannot be read back."""
+    by_robot = {getattr(r, "robot", None) for r in fleet_run.motion_log}
+    assert by_robot == set(robot_ids(2))

@@ -35,6 +35,7 @@ from coffeebot.fleet.estimates import TravelTimes
 from coffeebot.fleet.module import DispatcherModule, Send
 from coffeebot.fleet.mosquitto import DISPATCHER_USER, BrokerAddress, Credentials
 from coffeebot.floorplan import FloorPlan
+from coffeebot.logs import ROBOT
 from coffeebot.messages import ALL_TOPICS, FLEET, PoseEstimate
 from coffeebot.modules.base import Module
 from coffeebot.runtime.assemble import Runtime, assemble
@@ -257,6 +258,7 @@ async def serve_fleet(fleet: FleetSim) -> None:
     """Run the dispatcher and every robot until a stop is requested of them."""
 
     async def robot(runtime: Runtime) -> None:
+        ROBOT.set(runtime.config.fleet.robot_id)  # this task's copy: its log lines name it
         watchdog = runtime.config.watchdog
         await run_as_service(
             runtime.daemon,
