@@ -15,6 +15,7 @@ from coffeebot.floorplan import FloorPlan, load_floorplan
 from coffeebot.messages import (
     MotionState,
     MoveInstruction,
+    OtherRobot,
     PoseEstimate,
     RangeScan,
     SafetyState,
@@ -33,6 +34,29 @@ PLAN: FloorPlan = load_floorplan(ROOT / "floorplans" / "cs-building.toml")
 DT = 0.05
 SETUP = robot_setup(CONFIG.tof)
 """The chips set up as the ToF poller sets them up."""
+
+
+def reported(
+    x_mm: float,
+    y_mm: float,
+    heading_deg: float,
+    *,
+    name: str = "robot-2",
+    floor: int = 2,
+    moving: bool = False,
+    age_s: float = 0.0,
+) -> OtherRobot:
+    """Another robot of the fleet as the dispatcher's traffic reports it."""
+    return OtherRobot(
+        robot=name,
+        floor=floor,
+        x_mm=x_mm,
+        y_mm=y_mm,
+        heading_deg=heading_deg,
+        moving=moving,
+        reported_at_s=0.0,
+        age_s=age_s,
+    )
 
 
 def to_scan(world: World) -> RangeScan:

@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 
 import pytest
-from helpers import CONFIG, PLAN, SETUP, true_pose
+from helpers import CONFIG, PLAN, SETUP, reported, true_pose
 
 from coffeebot.messages import OtherRobot, RangeScan, Traffic
 from coffeebot.modules.motion import MotionModule
@@ -25,16 +25,7 @@ PASSING_D = 90.0
 
 
 def standing(x_mm: float, y_mm: float, *, moving: bool = False, age_s: float = 0.0) -> OtherRobot:
-    return OtherRobot(
-        robot="robot-2",
-        floor=FLOOR.level,
-        x_mm=x_mm,
-        y_mm=y_mm,
-        heading_deg=HEADING,
-        moving=moving,
-        reported_at_s=0.0,
-        age_s=age_s,
-    )
+    return reported(x_mm, y_mm, HEADING, floor=FLOOR.level, moving=moving, age_s=age_s)
 
 
 def marked_d(with_traffic: bool) -> list[float]:

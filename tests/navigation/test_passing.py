@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from helpers import CONFIG, PLAN, estimate_at
+from helpers import CONFIG, PLAN, estimate_at, reported
 
 from coffeebot.messages import MoveInstruction, OtherRobot, Traffic
 from coffeebot.modules.motion import MotionModule
@@ -28,16 +28,7 @@ def other(
     age_s: float = 0.0,
 ) -> OtherRobot:
     x, y = FLOOR.from_hallway(s, d)
-    return OtherRobot(
-        robot="robot-2",
-        floor=floor,
-        x_mm=x,
-        y_mm=y,
-        heading_deg=heading,
-        moving=moving,
-        reported_at_s=0.0,
-        age_s=age_s,
-    )
+    return reported(x, y, heading, floor=floor, moving=moving, age_s=age_s)
 
 
 def calls(robot: OtherRobot, traffic_age_s: float = 0.0) -> bool:

@@ -8,12 +8,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from helpers import CONFIG, DT, PLAN, SETUP, true_pose
+from helpers import CONFIG, DT, PLAN, SETUP, reported, true_pose
 
 from coffeebot.messages import (
     MotionState,
     MoveInstruction,
-    OtherRobot,
     RangeScan,
     SafetyState,
     Traffic,
@@ -40,15 +39,8 @@ class Meeting:
 def seen_as_traffic(name: str, robot: WorldRobot, moving: bool) -> Traffic:
     """What the dispatcher would tell the other robot of this one."""
     pose = true_pose(robot)
-    other = OtherRobot(
-        robot=name,
-        floor=pose.floor,
-        x_mm=pose.x_mm,
-        y_mm=pose.y_mm,
-        heading_deg=pose.heading_deg,
-        moving=moving,
-        reported_at_s=0.0,
-        age_s=0.0,
+    other = reported(
+        pose.x_mm, pose.y_mm, pose.heading_deg, name=name, floor=pose.floor, moving=moving
     )
     return Traffic(robots=[other])
 
