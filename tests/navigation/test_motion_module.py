@@ -115,7 +115,7 @@ async def test_collision_stop_stops_at_once(rig: Rig) -> None:
     assert command is not None and command.msg.brake  # the controller's stop line, not its ramp
 
 
-async def test_a_change_of_motion_state_is_logged_with_its_reason(
+async def test_a_change_of_motion_state_is_logged_with_its_reason_and_place(
     rig: Rig, caplog: pytest.LogCaptureFixture
 ) -> None:
     caplog.set_level(logging.INFO, logger="coffeebot.module.motion")
@@ -123,9 +123,16 @@ async def test_a_change_of_motion_state_is_logged_with_its_reason(
     stop = CollisionStatus(state=SafetyState.STOP, scan_seq=2, reason="front obstacle at 300 mm")
     await rig.run_for(0.2, stop)
     await rig.run_for(0.2, stop)  # held: no new line while the state stays
-    said = [r.getMessage() for r in caplog.records if r.name == "coffeebot.module.motion"]
+    records = [r for r in caplog.records if r.name == "coffeebot.module.motion"]
+    said = [r.getMessage() for r in records]
     assert said[-1] == "motion moving -> safety_stop: collision stop: front obstacle at 300 mm"
     assert sum("-> safety_stop" in line for line in said) == 1
+    where = vars(records[-1])  # and where it happened: a fleet's log is read by positions
+    assert (where["floor"], where["x_mm"], where["y_mm"]) == (
+        POSE.floor,
+        round(POSE.x_mm),
+        round(POSE.y_mm),
+    )
 
 
 async def test_never_faster_than_the_rated_speed(rig: Rig) -> None:

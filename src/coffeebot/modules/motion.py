@@ -323,14 +323,26 @@ class MotionModule(Module):
         self._publish_status(ctx, status)
 
     def _publish_status(self, ctx: ModuleContext, status: MotionStatus) -> None:
-        """The status on the board; a change of state in the log too (INFO), with its detail,
-        so a run's log says when and why the robot waited, went round or was held."""
+        """The status on the board; a change of state in the log too (INFO), with its detail
+        and where the robot believed it was, so a run's log says when, where and why the robot
+        waited, went round or was held."""
         if status.state is not self._last_state:
+            state = ctx.board.latest(CURRENT_STATE)
+            where = {}
+            if state is not None and state.msg.pose.initialised:
+                pose = state.msg.pose
+                where = {
+                    "floor": pose.floor,
+                    "x_mm": round(pose.x_mm),
+                    "y_mm": round(pose.y_mm),
+                    "heading_deg": round(pose.heading_deg),
+                }
             ctx.log.info(
                 "motion %s -> %s: %s",
                 "start" if self._last_state is None else self._last_state.value,
                 status.state.value,
                 status.detail,
+                extra=where,
             )
             self._last_state = status.state
         ctx.board.publish(MOTION_STATUS, self._with_detour(status))
