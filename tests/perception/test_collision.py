@@ -101,6 +101,29 @@ def test_hysteresis_keeps_stop_until_clearance_exceeds_radius_plus_margin() -> N
     assert released.state is not SafetyState.STOP
 
 
+def test_a_side_stop_holds_until_the_gap_clears_the_side_radius_plus_the_hysteresis() -> None:
+    m = monitor(hysteresis_mm=30, memory_s=0)
+    m.update(scan(CLEAR), 0, 1)
+    beside = {**CLEAR, 0: 45, 1: 45}
+    assert m.update(scan(beside), 0, 2).state is SafetyState.STOP
+    assert m.update(scan({**beside, 0: 70, 1: 70}), 0, 3).state is SafetyState.STOP
+    assert m.update(scan({**beside, 0: 85, 1: 85}), 0, 4).state is SafetyState.GO
+
+
+def test_a_stop_ahead_leaves_the_sides_thresholds_alone() -> None:
+    """Held by something ahead, 65 mm from the wall beside it (outside the seed's 50 mm side
+    radius): once the front clears it drives on. With one hysteresis for the whole verdict
+    the side's threshold grew to 80 mm with the front's stop, and the gap, which standing
+    never widens, held the robot for good."""
+    m = monitor(hysteresis_mm=30, memory_s=0)
+    m.update(scan(CLEAR), 0, 1)  # it starts held: the first scan sees the wall 300 mm away
+    near_wall = {**CLEAR, 0: 65, 1: 65}
+    assert m.update(scan(near_wall), 0, 1).state is SafetyState.GO
+    held = m.update(scan({**near_wall, **ahead(150)}), 0, 2)
+    assert (held.state, held.face) == (SafetyState.STOP, "front")
+    assert m.update(scan(near_wall), 0, 3).state is SafetyState.GO
+
+
 def test_obstacle_leaving_gives_clear_again() -> None:
     m = monitor(memory_s=0)
     m.update(scan(CLEAR, t=0.0), 0, 1)

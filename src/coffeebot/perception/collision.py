@@ -3,8 +3,11 @@
 Seed rules: start in "stop"; "go" only once every face is clear; front radius 200 mm, side
 radius 50 mm. Beyond the seed (in the spirit of nav2's collision monitor): the front stop
 distance grows with speed as ``v*t + v^2/(2a) + margin`` and never drops below the seed's
-radius; a slowdown zone lies in front of it; leaving a zone needs ``hysteresis_mm`` more
-clearance than entering it, so a reading jittering on a boundary does not chatter. A sensor
+radius; a slowdown zone lies in front of it; leaving a face's zone needs ``hysteresis_mm``
+more clearance than entering it, so a reading jittering on a boundary does not chatter. The
+hysteresis is the face's own: a robot held by something ahead, 60 mm from a wall beside it,
+is outside the side's zone and drives on once the front clears (a hysteresis of the whole
+verdict would hold it there for good, the side gap never growing). A sensor
 that is unhealthy, reports a hardware/bus failure, or has had no usable reading for
 ``stale_cycles`` scans makes the verdict "stop" (driving blind is never "go"); a sensor that
 sees nothing within its range is clear.
@@ -208,6 +211,8 @@ class CollisionMonitor:
         """How far from the axle the front corners reach when the body turns on the spot."""
         self.state = SafetyState.STOP
         """Seed rule: the robot starts in "stop" and only goes once every face is clear."""
+        self._faces = {s.face: SafetyState.STOP for s in self.sensors.values()}
+        """Each face's verdict at the last scan, for its hysteresis; every face starts held."""
         self._missed = dict.fromkeys(self.sensors, cfg.stale_cycles)
         """Consecutive scans without a usable reading; starts stale so the first scan counts."""
         self._corridor_mm = {
@@ -370,13 +375,14 @@ class CollisionMonitor:
         # the margin for what may stand on a pole (a wall glanced by one toed-out cone while
         # turning out reads as narrow as a pole).
         narrow = narrow and (wall is None or bool(seen))
-        # Leaving a zone needs extra clearance: the thresholds grow while we are inside it.
+        # Leaving a zone needs extra clearance: its face's thresholds grow while it is inside.
         margin = cfg.narrow_margin_mm if narrow else 0.0
         stop_at = self._radius(sensor.face, speed) + margin
         slow_at = stop_at + (cfg.slowdown_extra_mm if sensor.face in ("front", "rear") else 0.0)
-        if self.state is SafetyState.STOP:
+        held = self._faces[sensor.face]
+        if held is SafetyState.STOP:
             stop_at += cfg.hysteresis_mm
-        if self.state is not SafetyState.GO:
+        if held is not SafetyState.GO:
             slow_at += cfg.hysteresis_mm
         what = f"{sensor.face} {'narrow ' if narrow else ''}obstacle at {distance} mm{seen}"
         sigma = (reading.sigma_mm if reading is not None else None) or 0.0
@@ -538,6 +544,10 @@ class CollisionMonitor:
             ),
         )
         previous, self.state = self.state, worst.state
+        self._faces = {
+            face: max((f.state for f in findings if f.sensor.face == face), key=_RANK.__getitem__)
+            for face in self._faces
+        }
         front = [
             (f.distance_mm, f.sigma_mm)
             for f in findings
