@@ -63,7 +63,7 @@ class Harness:
         self.dispatcher.link_up_since_s = 0.0
         self.seq = 0
 
-    async def robot_reports(self, robot: str, order_id: str | None = None) -> None:
+    async def robot_reports(self, robot: str, order_id: str | None = None, floor: int = 2) -> None:
         self.seq += 1
         await self.dispatcher.on_connection(
             robot, Connection(state=ConnectionState.ONLINE, at_s=time.time())
@@ -73,7 +73,7 @@ class Harness:
             RobotState(
                 seq=self.seq,
                 at_s=time.time(),
-                floor=2,
+                floor=floor,
                 x_mm=BASE[0],
                 y_mm=BASE[1],
                 heading_deg=0.0,
@@ -237,3 +237,15 @@ async def test_traffic_tells_each_online_robot_the_others_with_their_age(
     assert (seen.floor, seen.x_mm, seen.y_mm) == (2, *BASE)
     assert seen.age_s == pytest.approx(0.4)
     assert not seen.moving
+
+
+async def test_traffic_tells_a_robot_of_the_others_on_its_floor(harness: Harness) -> None:
+    """A robot acts only on robots on its own floor: the others are not sent to it."""
+    await harness.robot_reports("r1")
+    await harness.robot_reports("r2", floor=3)
+    await harness.robot_reports("r3", floor=3)
+    harness.dispatcher.traffic()
+    traffic = {r: m for r, m in harness.sent if isinstance(m, Traffic)}
+    assert [o.robot for o in traffic["r1"].robots] == []
+    assert [o.robot for o in traffic["r2"].robots] == ["r3"]
+    assert [o.robot for o in traffic["r3"].robots] == ["r2"]

@@ -440,7 +440,9 @@ class Dispatcher:
     # --- traffic ----------------------------------------------------------------------------
 
     def traffic(self) -> None:
-        """Tell every online robot where the others with a known pose are."""
+        """Tell every online robot where the others with a known pose are: those on its
+        floor (a robot acts only on those, and a fleet's traffic grew with the square of its
+        size), every one while its own floor is unknown."""
         now = self.now()
         placed: dict[str, TrafficRobot] = {}
         for record in self.robots.values():
@@ -468,7 +470,12 @@ class Dispatcher:
         for record in self.robots.values():
             if record.stale or record.connection is not ConnectionState.ONLINE:
                 continue
-            others = [p for robot, p in sorted(placed.items()) if robot != record.robot]
+            own = placed.get(record.robot)
+            others = [
+                p
+                for robot, p in sorted(placed.items())
+                if robot != record.robot and (own is None or p.floor == own.floor)
+            ]
             self.send(record.robot, Traffic(robots=others))
 
     # --- people -----------------------------------------------------------------------------
