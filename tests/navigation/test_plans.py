@@ -104,6 +104,26 @@ def test_route_back_to_base_parks_inside() -> None:
     assert d < -PLAN.floor(2).hallway.width_mm / 2  # behind the tea room's door line
 
 
+def test_out_of_the_car_across_from_the_tea_room_the_robot_drives_straight_in() -> None:
+    """The tea room's door is across the hallway from the car: coming out, the robot faces
+    it on its axis. It used to turn into the lane, stop short of the door by the axle's
+    offset (behind it), turn round to get there and turn in carrying the centre 150 mm
+    off the axis, and stood held by the door's jamb."""
+    floor = PLAN.floor(2)
+    for planner in (PLANNER, FLEET_ROBOT):
+        steps = planner.route(3, PLAN.find_room("308").door.at_mm, planner.base).steps
+        at = next(i for i, s in enumerate(steps) if isinstance(s, ElevatorRide))
+        ride = steps[at]
+        assert isinstance(ride, ElevatorRide)
+        (out,) = [m.instruction for m in ride.exit]
+        face, into = [s.instruction for s in steps[at + 1 :] if isinstance(s, Move)][:2]
+        assert (face.action, face.detail) == ("turn", "facing Tea room")
+        assert into.action == "drive_to"
+        for ins in (out, into):
+            s, _ = floor.to_hallway(ins.x_mm, ins.y_mm)
+            assert abs(s - planner.base.door.at_mm) < 1.0, "off the door's axis"
+
+
 def test_a_fleet_robot_coming_back_waits_for_the_loading_spot_short_of_the_door() -> None:
     """Not in the doorway: a robot driving out of the tea room must get past it."""
     start = PLAN.find_room("209").door.at_mm

@@ -190,10 +190,16 @@ class RoutePlanner:
     # --- routes ----------------------------------------------------------------------------
 
     def route(
-        self, floor_level: int, s_start: float, goal: Place, leave: Door | None = None
+        self,
+        floor_level: int,
+        s_start: float,
+        goal: Place,
+        leave: Door | None = None,
+        park: bool = True,
     ) -> Route:
         """From ``s_start`` along ``floor_level``'s hallway (or parked behind ``leave``) to
-        ``goal``."""
+        ``goal``; a fleet's robot coming home ends on the loading spot, holding it, unless it
+        goes on to ``park`` (:meth:`back_to_spot`, or :meth:`face_out` for its next cup)."""
         steps: list[Step] = []
         floor = self.plan.floor(floor_level)
         s = s_start
@@ -218,7 +224,7 @@ class RoutePlanner:
             if self.parking is not None:
                 clear, s = self._clear_of_elevator(floor, s, goal)
                 steps += clear
-        steps.extend(self._along(floor, s, goal))
+        steps.extend(self._along(floor, s, goal, park))
         return Route(steps)
 
     def where(self, floor_level: int, x_mm: float, y_mm: float) -> tuple[float, Door | None]:
@@ -343,6 +349,15 @@ class RoutePlanner:
         target_s = goal.door.at_mm
         direction = 1.0 if target_s >= door_there.at_mm else -1.0
         out_lane = self.lane_mm(there, direction)
+        out = [
+            self._drive_to(
+                there,
+                there.from_hallway(door_there.at_mm, out_lane),
+                f"out of the elevator on floor {to_level}",
+            )
+        ]
+        if not (goal.inside and self._across_from(goal.door, door_there.at_mm)):
+            out.append(self._turn(there, self.travel_deg(there, direction), "into the lane"))
         return ElevatorRide(
             from_floor=from_level,
             to_floor=to_level,
@@ -351,17 +366,17 @@ class RoutePlanner:
                 self._drive_to(here, here.behind_door(door_here, depth), "into the car"),
                 self._turn(here, facing + 180.0, "turning round in the car"),
             ],
-            exit=[
-                self._drive_to(
-                    there,
-                    there.from_hallway(door_there.at_mm, out_lane),
-                    f"out of the elevator on floor {to_level}",
-                ),
-                self._turn(there, self.travel_deg(there, direction), "into the lane"),
-            ],
+            exit=out,
         )
 
-    def _along(self, floor: Floor, s: float, goal: Place) -> list[Step]:
+    def _across_from(self, door: Door, s: float) -> bool:
+        """Whether a robot at ``s`` stands across the hallway from ``door``, nearer to its
+        axis than a turn onto it carries the centre: there is no stopping short of it to
+        turn in (the point lies behind the robot, and the turn made arriving from the other
+        way carries the centre off the axis, towards a jamb), so it turns where it stands."""
+        return abs(door.at_mm - s) < self.pivot_mm
+
+    def _along(self, floor: Floor, s: float, goal: Place, park: bool = True) -> list[Step]:
         """Along the hallway from ``s`` to the goal's door, then into it if it is parked in."""
         door = goal.door
         direction = 1.0 if door.at_mm >= s else -1.0
@@ -381,23 +396,23 @@ class RoutePlanner:
                     self._lane(floor, hold_at, lane, detail=f"short of {door.room}'s door")
                 )
             steps.append(Lease("loading_spot", True))
-        steps.append(
-            self._lane(
-                floor,
-                turn_at if goal.inside else door.at_mm,
-                lane,
-                room=None if goal.inside else door.room,
-                detail=f"to {door.room}",
+        if not (goal.inside and self._across_from(door, s)):
+            steps.append(
+                self._lane(
+                    floor,
+                    turn_at if goal.inside else door.at_mm,
+                    lane,
+                    room=None if goal.inside else door.room,
+                    detail=f"to {door.room}",
+                )
             )
-        )
         if goal.inside:
             steps.append(self._turn(floor, self.facing_deg(floor, door), f"facing {door.room}"))
             steps.append(self.to_loading_spot(floor, door, f"into {door.room}"))
             if spot is None:
                 steps.append(self._turn(floor, self.facing_deg(floor, door) + 180.0, "parked"))
-            else:
-                steps += self._loading_to_spot(floor, door, spot)
-                steps.append(Lease("loading_spot", False))
+            elif park:
+                steps += self.back_to_spot()
         return steps
 
     # --- a fleet's base room ----------------------------------------------------------------
@@ -448,8 +463,19 @@ class RoutePlanner:
         floor = self.plan.floor(base.floor)
         return [Lease("loading_spot", True), *self._spot_to_loading(floor, base.door)]
 
+    def face_out(self) -> list[Step]:
+        """On the loading spot, come home with its next order taken: turned round to face
+        out, ready for the cup, as :meth:`loading` leaves it (no parking and coming back out,
+        which held the spot twice as long). The half turn about the axle carries the centre
+        into the room; the drive back puts it on the spot."""
+        base = self.base
+        floor = self.plan.floor(base.floor)
+        facing_out = self._turn(floor, self.facing_deg(floor, base.door) + 180.0, "facing out")
+        return [facing_out, self.to_loading_spot(floor, base.door)]
+
     def back_to_spot(self) -> list[Step]:
-        """From the loading spot back to its parking spot (no cup came), giving it back."""
+        """From the loading spot back to its parking spot (home, or no cup came), giving it
+        back."""
         base = self.base
         floor = self.plan.floor(base.floor)
         assert self.parking is not None
