@@ -16,6 +16,8 @@ from coffeebot.messages import (
     DELIVERY_STATUS,
     ELEVATOR_REQUEST,
     ELEVATOR_STATE,
+    LEASE_NEED,
+    LEASE_STATE,
     MOTION_STATUS,
     MOVE_INSTRUCTION,
     OPERATOR_EVENT,
@@ -23,6 +25,7 @@ from coffeebot.messages import (
     CurrentState,
     DeliveryProblem,
     ElevatorState,
+    LeaseState,
     MotionState,
     MotionStatus,
     OperatorEvent,
@@ -50,6 +53,8 @@ class Stand:
         self.elevator = elevator
         self.floor = 2
         self.car = 2
+        self.done: list[str] = []
+        """The details of the instructions it finished, in order."""
 
     async def motion(self) -> None:
         with self.board.subscribe(MOVE_INSTRUCTION) as instructions:
@@ -63,6 +68,7 @@ class Stand:
                 elif ins.action == "drive_to":
                     x, y = ins.x_mm, ins.y_mm
                 self.board.publish(CURRENT_STATE, pose_at(self.floor, x, y))
+                self.done.append(ins.detail)
                 self.board.publish(
                     MOTION_STATUS,
                     MotionStatus(instruction_id=ins.id, state=MotionState.DONE, remaining_mm=0.0),
@@ -265,3 +271,70 @@ async def test_a_crash_on_the_way_does_not_strand_the_order(rig) -> None:
     assert drain(statuses) == [OrderStatus.DELIVERED]
     assert board.latest(MOVE_INSTRUCTION).msg.action == "stop"  # home and parked
     await stop(tasks)
+
+
+FLEET = CONFIG.model_copy(
+    update={
+        "fleet": CONFIG.fleet.model_copy(
+            update={"broker": "mqtt://127.0.0.1:1883", "robot_id": "robot-1", "parking_spot": 0}
+        )
+    }
+)
+"""A fleet's robot, parked at the tea room's first spot."""
+
+
+async def grant_every_lease(board: Board) -> None:
+    """A fleet bridge whose dispatcher grants every place at once."""
+    held: set[str] = set()
+    with board.subscribe(LEASE_NEED) as needs:
+        async for envelope in needs:
+            (held.add if envelope.msg.want else held.discard)(envelope.msg.place)
+            board.publish(
+                LEASE_STATE,
+                LeaseState(elevator="elevator" in held, loading_spot="loading_spot" in held),
+            )
+
+
+async def deliver_in_a_fleet(next_order: bool) -> list[str]:
+    """A fleet's robot delivers to 205 from its parking spot and comes home, its next order
+    dispatched (``next_order``) while it waits at 205's door; the details of its moves from
+    the pickup on."""
+    clock = ManualClock(0.0)
+    board = Board(ALL_TOPICS, clock=clock)
+    spot = PLAN.floor(2).parking[0]
+    board.publish(CURRENT_STATE, pose_at(2, spot.x_mm, spot.y_mm, spot.heading_deg))
+    daemon = Daemon(board, [NavigationModule(FLEET, PLAN)])
+    stand = Stand(board, elevator=True)
+    tasks = [
+        asyncio.create_task(stand.motion()),
+        asyncio.create_task(grant_every_lease(board)),
+    ]
+    try:
+        await daemon.start()
+        board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o1", room="205", drink="tea"))
+        await clock.advance(1.0)
+        board.publish(OPERATOR_EVENT, OperatorEvent(kind="cup_loaded", order_id="o1"))
+        await clock.advance(5.0)
+        if next_order:
+            board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o2", room="207", drink="tea"))
+        picked_at = len(stand.done)
+        board.publish(OPERATOR_EVENT, OperatorEvent(kind="pickup_confirmed", order_id="o1"))
+        await clock.advance(5.0)
+        return stand.done[picked_at:]
+    finally:
+        await stop(tasks)
+        await daemon.shutdown()
+
+
+async def test_a_fleet_robot_with_its_next_order_waits_on_the_loading_spot() -> None:
+    """Home with the next order taken, it turns round on the loading spot for the cup: it
+    neither parks nor comes back out of the room (the spot was held twice as long)."""
+    with_next = await deliver_in_a_fleet(next_order=True)
+    assert "to its parking spot" not in with_next
+    assert with_next[-3:] == [
+        "facing out",
+        "to the loading spot",
+        "on the loading spot, for the next cup",
+    ]
+    without = await deliver_in_a_fleet(next_order=False)
+    assert without[-3:] == ["to its parking spot", "parked", "parked"]

@@ -120,6 +120,9 @@ class NavigationModule(Module):
         """Shared places asked for (a fleet's) and not given back."""
         self._holding: set[SharedPlace] = set()
         """...and of those, the ones granted."""
+        self._on_loading_spot = False
+        """A fleet's robot that came home with its next order taken and waits for the cup on
+        the loading spot, holding it (:meth:`_go_home`)."""
 
     # --- board helpers ---------------------------------------------------------------------
 
@@ -346,12 +349,14 @@ class NavigationModule(Module):
     # --- deliveries ------------------------------------------------------------------------
 
     def _route_to(self, ctx: ModuleContext, room: str | None) -> Route:
+        """To ``room``'s door, or (None) home: a fleet's robot to the loading spot, where
+        :meth:`_go_home` decides whether it parks."""
         pose = self._pose(ctx)
         if pose is None:
             raise DeliveryAborted("the robot does not know where it is", DeliveryProblem.LOST)
         goal = self.planner.base if room is None else self.planner.door_place(room)
         s, leave = self.planner.where(pose.floor, pose.x_mm, pose.y_mm)
-        route = self.planner.route(pose.floor, s, goal, leave)
+        route = self.planner.route(pose.floor, s, goal, leave, park=room is not None)
         life = self._life
         ctx.board.publish(
             ROUTE,
@@ -368,8 +373,10 @@ class NavigationModule(Module):
         on the way, at the door."""
         nav = self.nav
         if not life.left_base:
-            if self.fleet:  # from its parking spot onto the loading spot, which it then holds
+            if self.fleet and not (self._on_loading_spot and "loading_spot" in self._holding):
+                # From its parking spot onto the loading spot, which it then holds.
                 await self._drive(ctx, self.planner.loading())
+            self._on_loading_spot = False
             self._report(ctx, life.ready_for_cup())
             if not await self._wait_for(
                 ctx, self._event("cup_loaded").is_set, nav.loading_timeout_s
@@ -448,16 +455,30 @@ class NavigationModule(Module):
         elif "loading_spot" in self._holding:  # a fleet's robot that got no cup
             await self._drive(ctx, self.planner.back_to_spot())
         for place in list(self._asked):  # a wait for a place that ended with the order
-            await self._lease(ctx, Lease(place, False))
+            if not (place == "loading_spot" and self._on_loading_spot):
+                await self._lease(ctx, Lease(place, False))
         self._life = None
 
     async def _go_home(self, ctx: ModuleContext) -> None:
+        """Back to the base room; a fleet's robot with its next order taken stays on the
+        loading spot for that order's cup, one without parks at its spot."""
         try:
             await self._drive(ctx, self._route_to(ctx, None).steps)
+            if self.fleet and self._order_waiting(ctx):
+                await self._drive(ctx, self.planner.face_out())
+                self._on_loading_spot = True
+            elif self.fleet:
+                await self._drive(ctx, self.planner.back_to_spot())
         except DeliveryAborted as exc:
             ctx.log.error("could not return to base: %s", exc)
-        self._instruct(ctx, MoveInstruction(action="stop", detail="parked"))
+        where = "on the loading spot, for the next cup" if self._on_loading_spot else "parked"
+        self._instruct(ctx, MoveInstruction(action="stop", detail=where))
         ctx.board.publish(ROUTE, PlannedRoute(to=self.planner.base.door.room))
+
+    def _order_waiting(self, ctx: ModuleContext) -> bool:
+        """Whether an order was dispatched to this robot that it has not taken up yet."""
+        pending = ctx.board.latest(ORDER_DISPATCH)
+        return pending is not None and pending.msg.order_id not in self._handled
 
     async def run(self, ctx: ModuleContext) -> None:
         dispatches = ctx.board.subscribe(ORDER_DISPATCH)
