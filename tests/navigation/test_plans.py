@@ -235,6 +235,19 @@ def test_a_fleet_robot_waits_for_the_elevator_in_the_tea_room_across_from_it() -
     assert steps.count(Lease("elevator", True)) == 1
 
 
+def test_a_fleet_robot_from_the_tea_room_holds_the_spot_until_it_rides_off() -> None:
+    """Waiting in front of the tea room's door for the car's doors, it is in the way of a
+    robot turning in for the loading spot: the spot is given back once it has ridden off
+    (given back at the door, a robot coming home turned in there, face to face with it
+    driving into the car, and both stood for good)."""
+    base = FLEET_ROBOT.base
+    steps = FLEET_ROBOT.route(2, base.door.at_mm, FLEET_ROBOT.door_place("305"), base.door).steps
+    ride = next(i for i, s in enumerate(steps) if isinstance(s, ElevatorRide))
+    assert steps.index(Lease("loading_spot", False)) == ride + 1
+    steps = FLEET_ROBOT.route(2, base.door.at_mm, FLEET_ROBOT.door_place("205"), base.door).steps
+    assert steps[1] == Lease("loading_spot", False), "along the floor: given back once out"
+
+
 def test_a_fleet_robot_holds_short_of_the_elevator_on_its_side_near_the_wall() -> None:
     """Coming along the hallway, it waits on its own side ``HOLD_MM`` short, close to the
     wall: a robot coming out of the car towards it passes it on the other side."""
@@ -259,7 +272,7 @@ def test_a_fleet_robot_gives_the_elevator_back_once_clear_of_its_door() -> None:
     base = FLEET_ROBOT.base
     steps = FLEET_ROBOT.route(2, base.door.at_mm, FLEET_ROBOT.door_place("305"), base.door).steps
     ride = next(i for i, s in enumerate(steps) if isinstance(s, ElevatorRide))
-    away, back = steps[ride + 1], steps[ride + 2]
+    away, back = [s for s in steps[ride + 1 :] if s != Lease("loading_spot", False)][:2]
     elevator = PLAN.floor(3).elevator
     assert elevator is not None
     assert isinstance(away, Move) and away.instruction.target_s_mm == elevator.at_mm - HOLD_MM

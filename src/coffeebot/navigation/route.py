@@ -208,16 +208,28 @@ class RoutePlanner:
         asked = rides and leave is not None and self._near_elevator(floor, leave.at_mm)
         if asked:
             steps.extend(self._elevator_leases(goal))
+        # A fleet's robot leaves the base room from the loading spot (:meth:`loading`),
+        # holding it until it is out in the hallway; one leaving it for the car nearby (across
+        # the hallway in the CS building) until it has ridden off: waiting in front of the
+        # door for the car's doors, it is still in the way of a robot turning in for the spot.
+        spot_given_back = Lease("loading_spot", False)
+        from_base = (
+            self.parking is not None
+            and leave is not None
+            and leave.room == self.plan.tea_room.door.room
+        )
+        to_car_near = asked and from_base
         if leave is not None:
             s = leave.at_mm
             lane = self.lane_mm(floor, self._direction(floor, s, goal))
             steps.append(self._drive_to(floor, floor.from_hallway(s, lane), f"out of {leave.room}"))
-            if self.parking is not None and leave.room == self.plan.tea_room.door.room:
-                # A fleet's robot leaves from the loading spot (:meth:`loading`), holding it.
-                steps.append(Lease("loading_spot", False))
+            if from_base and not to_car_near:
+                steps.append(spot_given_back)
         if rides:
             steps.extend(self._to_elevator(floor, s, goal, asked))
             steps.append(self._ride(floor_level, goal.floor, goal))
+            if to_car_near:
+                steps.append(spot_given_back)
             floor = self.plan.floor(goal.floor)
             assert floor.elevator is not None
             s = floor.elevator.at_mm
