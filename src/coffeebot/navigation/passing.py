@@ -7,9 +7,9 @@ with two simulated robots: one goes round, the other stays blocked). Both at 150
 wall they pass with no contact and lose a scan or two to the monitor; at 100 mm they pass
 too, but with the wall 73 mm from a side, 23 mm outside the side radius (when a stop ahead
 still raised every face's threshold by the hysteresis, the side then held one of them for
-good). So while another robot
-comes the other way (or stands) in the hallway ahead, a robot keeps to its passing lane, on
-the same side at ``passing_wall_distance_mm``, and goes back to its lane once it is past.
+good). So while another robot comes the other way (or stands) in the hallway ahead, a
+robot keeps to its passing lane, on the same side at ``passing_wall_distance_mm``, and goes
+back to its lane once it is past.
 Only the dispatcher's traffic tells a robot from an obstacle: without a fleet there is none,
 and nothing changes.
 """
