@@ -869,7 +869,8 @@ class NavigationConfig(Section):
         ge=0,
         le=LENGTH_MM,
         description="a fleet's robot coming back waits for the loading spot this far before "
-        "the base room's door, clear of a robot driving out of it",
+        "the base room's door, clear of a robot driving out of it (out of the car across "
+        "from it: this far from the car, at the holding point)",
     )
     elevator: ElevatorConfig = ElevatorConfig()
 

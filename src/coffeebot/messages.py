@@ -490,7 +490,7 @@ class OrderUpdate(Message):
 
 # --- fleet ------------------------------------------------------------------------------
 
-SharedPlace = Literal["elevator", "loading_spot"]
+SharedPlace = Literal["elevator", "loading_spot", "holding_point"]
 
 
 class LeaseNeed(Message):
@@ -507,10 +507,12 @@ class LeaseState(Message):
 
     elevator: bool = False
     loading_spot: bool = False
+    holding_point: bool = False
     detail: str = ""
 
     def holds(self, place: SharedPlace) -> bool:
-        return self.elevator if place == "elevator" else self.loading_spot
+        held: bool = getattr(self, place)
+        return held
 
 
 class FleetRobot(Message):

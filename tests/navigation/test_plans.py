@@ -110,18 +110,69 @@ def test_out_of_the_car_across_from_the_tea_room_the_robot_drives_straight_in() 
     offset (behind it), turn round to get there and turn in carrying the centre 150 mm
     off the axis, and stood held by the door's jamb."""
     floor = PLAN.floor(2)
-    for planner in (PLANNER, FLEET_ROBOT):
-        steps = planner.route(3, PLAN.find_room("308").door.at_mm, planner.base).steps
+    steps = PLANNER.route(3, PLAN.find_room("308").door.at_mm, PLANNER.base).steps
+    at = next(i for i, s in enumerate(steps) if isinstance(s, ElevatorRide))
+    ride = steps[at]
+    assert isinstance(ride, ElevatorRide)
+    (out,) = [m.instruction for m in ride.exit]
+    face, into = [s.instruction for s in steps[at + 1 :] if isinstance(s, Move)][:2]
+    assert (face.action, face.detail) == ("turn", "facing Tea room")
+    assert into.action == "drive_to"
+    for ins in (out, into):
+        s, _ = floor.to_hallway(ins.x_mm, ins.y_mm)
+        assert abs(s - PLANNER.base.door.at_mm) < 1.0, "off the door's axis"
+
+
+def test_a_fleet_robot_out_of_the_car_waits_for_the_loading_spot_at_the_holding_point() -> None:
+    """Out of the car across from the tea room, a fleet's robot without the loading spot
+    must wait somewhere: in front of the car's door it stands in the way of the robot
+    leaving the room for the car, each holding what the other waits for. So it takes the
+    holding point before the car (not the loading spot: that held the spot for the whole
+    wait for the car and the ride, a minute or more a cup), waits there for the spot, and
+    gives the point back once in the room, so the next robot rides down only then."""
+    floor = PLAN.floor(2)
+    elevator = floor.elevator
+    assert elevator is not None
+    door = FLEET_ROBOT.base.door
+    for start in ("305", "313"):
+        loc = PLAN.find_room(start)
+        steps = FLEET_ROBOT.route(3, loc.door.at_mm, FLEET_ROBOT.base, loc.door).steps
+        leases = [s for s in steps if isinstance(s, Lease)]
+        assert leases[:2] == [Lease("holding_point", True), Lease("elevator", True)]
+        assert Lease("loading_spot", True) not in steps[: steps.index(Lease("elevator", True))]
         at = next(i for i, s in enumerate(steps) if isinstance(s, ElevatorRide))
-        ride = steps[at]
-        assert isinstance(ride, ElevatorRide)
-        (out,) = [m.instruction for m in ride.exit]
-        face, into = [s.instruction for s in steps[at + 1 :] if isinstance(s, Move)][:2]
-        assert (face.action, face.detail) == ("turn", "facing Tea room")
-        assert into.action == "drive_to"
-        for ins in (out, into):
-            s, _ = floor.to_hallway(ins.x_mm, ins.y_mm)
-            assert abs(s - planner.base.door.at_mm) < 1.0, "off the door's axis"
+        hold, back, ask = steps[at + 1 : at + 4]
+        assert isinstance(hold, Move) and hold.instruction.stop
+        assert (back, ask) == (Lease("elevator", False), Lease("loading_spot", True))
+        # Towards the dead end, clear of the door's opening with the whole body.
+        s = hold.instruction.target_s_mm
+        assert s == elevator.at_mm + CONFIG.navigation.hold_short_mm
+        assert s - CONFIG.geometry.length_mm / 2 > door.at_mm + door.width_mm / 2
+        assert s + CONFIG.geometry.length_mm / 2 < floor.hallway.length_mm
+        into = next(
+            i
+            for i, s in enumerate(steps)
+            if isinstance(s, Move) and s.instruction.detail == ("into Tea room")
+        )
+        assert steps[into + 1] == Lease("holding_point", False)
+
+
+def test_without_room_for_a_holding_point_the_spot_is_taken_before_the_car() -> None:
+    """No holding point fits between the car and the hallway's end: the robot takes the
+    loading spot before the car, so it never waits for it in front of the car's door."""
+    far = CONFIG.navigation.model_copy(update={"hold_short_mm": 2500.0})
+    planner = RoutePlanner(
+        PLAN,
+        CONFIG.motion,
+        far,
+        CONFIG.geometry.width_mm,
+        pivot_mm=CONFIG.motor.axle_x_mm,
+        parking=PLAN.floor(2).parking[1],
+    )
+    steps = planner.route(3, PLAN.find_room("305").door.at_mm, planner.base).steps
+    ask = steps.index(Lease("elevator", True))
+    assert steps[ask - 1] == Lease("loading_spot", True)
+    assert not any(isinstance(s, Lease) and s.place == "holding_point" for s in steps)
 
 
 def test_a_fleet_robot_coming_back_waits_for_the_loading_spot_short_of_the_door() -> None:
@@ -261,11 +312,11 @@ def test_a_fleet_robot_holds_short_of_the_elevator_on_its_side_near_the_wall() -
     assert isinstance(hold, Move) and hold.instruction.stop
     assert hold.instruction.target_s_mm == elevator.at_mm - HOLD_MM
     assert hold.instruction.lane_mm == waiting_lane(floor)
-    # The tea room is across from the car on floor 2: the spot is taken before the car, so
-    # the robot never waits for it in front of the car's door.
-    assert steps[ask - 1] == Lease("loading_spot", True)
+    # The tea room is across from the car on floor 2: the holding point out of the car is
+    # taken before it, so the robot never waits for the spot in front of the car's door.
+    assert steps[ask - 1] == Lease("holding_point", True)
     ride = next(i for i, s in enumerate(steps) if isinstance(s, ElevatorRide))
-    assert ask < ride and steps[ride + 1] == Lease("elevator", False)
+    assert ask < ride and steps[ride + 2] == Lease("elevator", False)
 
 
 def test_a_fleet_robot_gives_the_elevator_back_once_clear_of_its_door() -> None:
@@ -298,7 +349,7 @@ def test_a_fleet_robot_beside_the_elevator_waits_for_it_in_its_own_lane() -> Non
     assert elevator is not None
     door = PLAN.find_room("313").door
     steps = FLEET_ROBOT.route(3, door.at_mm, FLEET_ROBOT.base).steps
-    ask = steps.index(Lease("loading_spot", True))
+    ask = steps.index(Lease("holding_point", True))
     along, hold, square = steps[ask - 3 : ask]
     travel = FLEET_ROBOT.travel_deg(floor, 1.0)
     assert isinstance(along, Move) and along.instruction.action == "turn"
@@ -321,7 +372,7 @@ def test_a_fleet_robot_changes_lanes_for_the_elevator_only_with_way_enough() -> 
     assert elevator is not None
     for start, squares in ((elevator.at_mm - HOLD_MM - 4.0, True), (5000.0, False)):
         steps = FLEET_ROBOT.route(3, start, FLEET_ROBOT.base).steps
-        ask = steps.index(Lease("loading_spot", True))
+        ask = steps.index(Lease("holding_point", True))
         last = steps[ask - 1]
         assert isinstance(last, Move)
         assert (last.instruction.action == "turn") is squares

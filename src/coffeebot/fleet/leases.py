@@ -1,4 +1,5 @@
-"""Shared places a robot must hold alone: the elevator car and the tea room's loading spot.
+"""Shared places a robot must hold alone: the elevator car, the tea room's loading spot, and
+the holding point where a robot out of the car waits for that spot.
 
 The dispatcher keeps one :class:`LeaseBook`. A robot asks for a place before it goes in and
 gives it back when it is out; while inside it asks again now and then, which renews the
@@ -15,7 +16,7 @@ from dataclasses import dataclass, field
 
 from coffeebot.fleet.protocol import Place
 
-PLACES: tuple[Place, ...] = ("elevator", "loading_spot")
+PLACES: tuple[Place, ...] = ("elevator", "loading_spot", "holding_point")
 
 
 @dataclass

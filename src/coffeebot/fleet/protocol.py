@@ -127,7 +127,7 @@ class Ack(FleetMessage):
     reason: str = Field("", max_length=500)
 
 
-Place = Literal["elevator", "loading_spot"]
+Place = Literal["elevator", "loading_spot", "holding_point"]
 
 
 class LeaseRequest(FleetMessage):

@@ -420,6 +420,7 @@ class FleetBridge(Module):
         state = LeaseState(
             elevator="elevator" in self._granted,
             loading_spot="loading_spot" in self._granted,
+            holding_point="holding_point" in self._granted,
             detail=detail,
         )
         previous = ctx.board.latest(LEASE_STATE)

@@ -25,10 +25,13 @@ for it where a robot coming out of the car is not in its way: on its own side, a
 wall as a passing robot, ``max(pull_over_mm, hold_short_mm)`` short of the elevator, or in
 the room it leaves when that room is nearer than that; and it holds the car until it is
 that far from it on the other floor, so the next robot sets off only once the way is clear.
-A robot riding to the base room on the other floor takes the loading spot before the
-elevator: coming out of the car it could wait for the spot nowhere but in front of the
-car's door, where the robot leaving the room with a cup has to pass (each holding what the
-other waits for).
+A robot riding to a base room near the car on the other floor takes the holding point
+before the elevator, a place out of the car ``hold_short_mm`` towards the hallway's nearer
+end, and waits there for the loading spot: in front of the car's door it would stand where
+the robot leaving the room with a cup has to pass, each holding what the other waits for.
+It gives the point back once in the room. Where no holding point fits it takes the loading
+spot itself before the elevator (which holds the spot through the wait for the car and the
+ride).
 """
 
 from __future__ import annotations
@@ -236,7 +239,10 @@ class RoutePlanner:
             if self.parking is not None:
                 clear, s = self._clear_of_elevator(floor, s, goal)
                 steps += clear
-        steps.extend(self._along(floor, s, goal, park))
+        # Waiting at the holding point, the robot is out of every other's way until it
+        # turns in: the next may ride down to it once it is in the room.
+        held = Lease("holding_point", True) in steps
+        steps.extend(self._along(floor, s, goal, park, held=held))
         return Route(steps)
 
     def where(self, floor_level: int, x_mm: float, y_mm: float) -> tuple[float, Door | None]:
@@ -277,12 +283,39 @@ class RoutePlanner:
         assert there is not None
         leases: list[Step] = []
         if goal.inside and abs(goal.door.at_mm - there.at_mm) <= self._elevator_hold_mm:
-            leases.append(Lease("loading_spot", True))
+            first: SharedPlace = (
+                "holding_point" if self._holding_point(goal) is not None else "loading_spot"
+            )
+            leases.append(Lease(first, True))
         return [*leases, Lease("elevator", True)]
+
+    def _holding_point(self, goal: Place) -> float | None:
+        """Where (``s``) a fleet's robot out of the car waits for the loading spot of a base
+        room across from or near the car: ``hold_short_mm`` from the car, towards the nearer
+        end of the hallway (the CS building's dead end, away from every office and out of
+        the way between the car and the room); None when that lies outside the hallway."""
+        floor = self.plan.floor(goal.floor)
+        if not goal.inside or floor.elevator is None:
+            return None
+        at = floor.elevator.at_mm
+        length = floor.hallway.length_mm
+        direction = 1.0 if length - at < at else -1.0
+        point = at + direction * self.nav.hold_short_mm
+        if not self.body_width_mm <= point <= length - self.body_width_mm:
+            return None
+        return point
 
     def _clear_of_elevator(self, floor: Floor, s: float, goal: Place) -> tuple[list[Step], float]:
         """Out of the car, a fleet's robot gives the elevator back once it is as far from
-        it as the next robot waits (at once if its goal is nearer); and where it is then."""
+        it as the next robot waits (at once if its goal is nearer; at the holding point if
+        it goes on to the loading spot nearby, where it then waits for it); and where it
+        is then."""
+        holding = self._holding_point(goal)
+        if holding is not None and abs(goal.door.at_mm - s) <= self._elevator_hold_mm:
+            direction = 1.0 if holding >= s else -1.0
+            lane = self.lane_mm(floor, direction)
+            wait = self._lane(floor, holding, lane, detail="to the holding point")
+            return [wait, Lease("elevator", False)], holding
         direction = 1.0 if goal.door.at_mm >= s else -1.0
         clear_at = s + direction * self._elevator_hold_mm
         if (goal.door.at_mm - clear_at) * direction <= 0:
@@ -388,8 +421,11 @@ class RoutePlanner:
         way carries the centre off the axis, towards a jamb), so it turns where it stands."""
         return abs(door.at_mm - s) < self.pivot_mm
 
-    def _along(self, floor: Floor, s: float, goal: Place, park: bool = True) -> list[Step]:
-        """Along the hallway from ``s`` to the goal's door, then into it if it is parked in."""
+    def _along(
+        self, floor: Floor, s: float, goal: Place, park: bool = True, held: bool = False
+    ) -> list[Step]:
+        """Along the hallway from ``s`` to the goal's door, then into it if it is parked in
+        (giving the holding point back once in, if it ``held`` it)."""
         door = goal.door
         direction = 1.0 if door.at_mm >= s else -1.0
         steps: list[Step] = []
@@ -421,6 +457,8 @@ class RoutePlanner:
         if goal.inside:
             steps.append(self._turn(floor, self.facing_deg(floor, door), f"facing {door.room}"))
             steps.append(self.to_loading_spot(floor, door, f"into {door.room}"))
+            if held:
+                steps.append(Lease("holding_point", False))
             if spot is None:
                 steps.append(self._turn(floor, self.facing_deg(floor, door) + 180.0, "parked"))
             elif park:
