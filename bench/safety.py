@@ -623,10 +623,7 @@ def case_end(lane: Lane, setup: Setup) -> EndRule:
 
 def forward_commands(sim: Simulation) -> list[tuple[float, float]]:
     """(world time, forward speed) of every command the motor controller accepted."""
-    return [
-        (sim.world_t(c.time_s), (c.left_mm_s + c.right_mm_s) / 2.0)
-        for c in sim.motor.commands
-    ]
+    return [(sim.world_t(c.time_s), (c.left_mm_s + c.right_mm_s) / 2.0) for c in sim.motor.commands]
 
 
 def braking_start(
@@ -820,6 +817,7 @@ def load(direction: float = 1.0) -> tuple[RobotConfig, FloorPlan, Lane]:
         config.motion,
         config.navigation,
         config.geometry.width_mm,
+        body_length_mm=config.geometry.length_mm,
         pivot_mm=config.motor.axle_x_mm,
     )
     lane = Lane(

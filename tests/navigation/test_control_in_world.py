@@ -9,7 +9,13 @@ from coffeebot.navigation.route import RoutePlanner
 from coffeebot.sim.world import ObstacleSpec, Pose, RobotSpec, World
 
 FLOOR = PLAN.floor(2)
-PLANNER = RoutePlanner(PLAN, CONFIG.motion, CONFIG.navigation, CONFIG.geometry.width_mm)
+PLANNER = RoutePlanner(
+    PLAN,
+    CONFIG.motion,
+    CONFIG.navigation,
+    CONFIG.geometry.width_mm,
+    body_length_mm=CONFIG.geometry.length_mm,
+)
 LANE = PLANNER.lane_mm(FLOOR, 1.0)  # travelling +x: right lane is negative d
 
 
@@ -131,7 +137,6 @@ def test_waits_for_a_person_walking_towards_it() -> None:
     assert not world.robot.collisions
     assert MotionState.WAITING in run.states
     assert MotionState.AVOIDING not in run.states[: run.states.index(MotionState.WAITING) + 5]
-
 
 
 def test_never_drives_a_corner_into_a_swivel_chairs_seat() -> None:

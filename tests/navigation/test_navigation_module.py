@@ -38,7 +38,13 @@ from coffeebot.navigation.route import RoutePlanner
 from coffeebot.sim.crash import CrashSwitch
 from manual_clock import ManualClock
 
-PLANNER = RoutePlanner(PLAN, CONFIG.motion, CONFIG.navigation, CONFIG.geometry.width_mm)
+PLANNER = RoutePlanner(
+    PLAN,
+    CONFIG.motion,
+    CONFIG.navigation,
+    CONFIG.geometry.width_mm,
+    body_length_mm=CONFIG.geometry.length_mm,
+)
 
 
 def pose_at(floor: int, x: float, y: float, heading: float = 0.0) -> CurrentState:

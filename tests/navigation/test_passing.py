@@ -78,9 +78,9 @@ def test_the_passing_lane_is_on_the_right_at_its_wall_distance() -> None:
     half = FLOOR.hallway.width_mm / 2
     for direction in (1.0, -1.0):
         lane = right_lane_mm(FLOOR, direction, 150.0, width)
-        keep_right = RoutePlanner(PLAN, CONFIG.motion, CONFIG.navigation, width).lane_mm(
-            FLOOR, direction
-        )
+        keep_right = RoutePlanner(
+            PLAN, CONFIG.motion, CONFIG.navigation, width, body_length_mm=CONFIG.geometry.length_mm
+        ).lane_mm(FLOOR, direction)
         assert math.isclose(half - abs(lane) - width / 2, 150.0)
         assert math.copysign(1.0, lane) == math.copysign(1.0, keep_right)
         assert abs(lane) > abs(keep_right)
@@ -102,7 +102,13 @@ def lane_keeping(
     return module.controller
 
 
-PLANNER = RoutePlanner(PLAN, CONFIG.motion, CONFIG.navigation, CONFIG.geometry.width_mm)
+PLANNER = RoutePlanner(
+    PLAN,
+    CONFIG.motion,
+    CONFIG.navigation,
+    CONFIG.geometry.width_mm,
+    body_length_mm=CONFIG.geometry.length_mm,
+)
 KEEP_RIGHT = PLANNER.lane_mm(FLOOR, 1.0)
 
 

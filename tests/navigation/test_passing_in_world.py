@@ -27,7 +27,13 @@ from coffeebot.sim.world.tof import as_range_reading
 from coffeebot.sim.world.world import WorldRobot
 
 FLOOR = PLAN.floor(2)
-PLANNER = RoutePlanner(PLAN, CONFIG.motion, CONFIG.navigation, CONFIG.geometry.width_mm)
+PLANNER = RoutePlanner(
+    PLAN,
+    CONFIG.motion,
+    CONFIG.navigation,
+    CONFIG.geometry.width_mm,
+    body_length_mm=CONFIG.geometry.length_mm,
+)
 
 
 @dataclass

@@ -27,6 +27,7 @@ class TravelTimes:
             config.motion,
             config.navigation,
             config.geometry.width_mm,
+            body_length_mm=config.geometry.length_mm,
             pivot_mm=config.motor.axle_x_mm,
         )
         self.base_to = cache(self._base_to)

@@ -108,6 +108,7 @@ class NavigationModule(Module):
             config.motion,
             config.navigation,
             config.geometry.width_mm,
+            body_length_mm=config.geometry.length_mm,
             pivot_mm=config.motor.axle_x_mm,
             parking=parking_spot(config, plan) if self.fleet else None,
         )

@@ -26,7 +26,7 @@ wall as a passing robot, ``max(pull_over_mm, hold_short_mm)`` short of the eleva
 the room it leaves when that room is nearer than that; and it holds the car until it is
 that far from it on the other floor, so the next robot sets off only once the way is clear.
 A robot riding to a base room near the car on the other floor takes the holding point
-before the elevator, a place out of the car ``hold_short_mm`` towards the hallway's nearer
+before the elevator, a place out of the car beside the doorways towards the hallway's nearer
 end, and waits there for the loading spot: in front of the car's door it would stand where
 the robot leaving the room with a cup has to pass, each holding what the other waits for.
 It gives the point back once in the room. Where no holding point fits it takes the loading
@@ -43,6 +43,9 @@ from coffeebot.config import MotionConfig, NavigationConfig
 from coffeebot.floorplan import Door, Floor, FloorPlan, ParkingSpot
 from coffeebot.messages import MoveInstruction, SharedPlace
 from coffeebot.navigation.passing import right_lane_mm
+
+DOORWAY_CLEARANCE_MM = 100.0
+"""Between a robot waiting at the holding point and the doorways it waits beside."""
 
 
 @dataclass(frozen=True)
@@ -101,12 +104,15 @@ class RoutePlanner:
         body_width_mm: float,
         pivot_mm: float = 0.0,
         parking: ParkingSpot | None = None,
+        *,
+        body_length_mm: float,
     ) -> None:
         """``parking``: this robot's spot in the base room, if it is one of a fleet."""
         self.plan = plan
         self.motion = motion
         self.nav = nav
         self.body_width_mm = body_width_mm
+        self.body_length_mm = body_length_mm
         self.pivot_mm = pivot_mm
         self.parking = parking
 
@@ -291,17 +297,24 @@ class RoutePlanner:
 
     def _holding_point(self, goal: Place) -> float | None:
         """Where (``s``) a fleet's robot out of the car waits for the loading spot of a base
-        room across from or near the car: ``hold_short_mm`` from the car, towards the nearer
-        end of the hallway (the CS building's dead end, away from every office and out of
-        the way between the car and the room); None when that lies outside the hallway."""
+        room across from or near the car: towards the nearer end of the hallway (the CS
+        building's dead end, away from every office), the whole body ``DOORWAY_CLEARANCE_MM``
+        clear of the car's and the room's doorways, so the robot leaving the room for the
+        car passes it. None when there is not a body's length left beyond it to turn round
+        in (a turn on the spot is held while the front is within its stop distance of a
+        wall)."""
         floor = self.plan.floor(goal.floor)
-        if not goal.inside or floor.elevator is None:
+        elevator = floor.elevator
+        if not goal.inside or elevator is None:
             return None
-        at = floor.elevator.at_mm
         length = floor.hallway.length_mm
-        direction = 1.0 if length - at < at else -1.0
-        point = at + direction * self.nav.hold_short_mm
-        if not self.body_width_mm <= point <= length - self.body_width_mm:
+        direction = 1.0 if length - elevator.at_mm < elevator.at_mm else -1.0
+        edge = max(
+            direction * (d.at_mm + direction * d.width_mm / 2) for d in (elevator, goal.door)
+        )
+        point = direction * (edge + DOORWAY_CLEARANCE_MM + self.body_length_mm / 2)
+        room = 1.5 * self.body_length_mm
+        if not room <= point <= length - room:
             return None
         return point
 
