@@ -144,6 +144,39 @@ class ParkingSpot(_Model):
     heading_deg: StrictFloat = Field(0.0, ge=-360, le=360)
 
 
+class FloorMark(_Model):
+    """A mark on the floor seen by a ceiling camera: where it lies in the floor frame,
+    surveyed, and the pixel it shows at in the camera's image (the calibration's input)."""
+
+    x_mm: Coordinate
+    y_mm: Coordinate
+    u_px: StrictFloat = Field(ge=0, le=10_000)
+    v_px: StrictFloat = Field(ge=0, le=10_000)
+
+
+class Camera(_Model):
+    """A fixed camera on the ceiling looking straight down (seed 003: 320 x 240 px at 10 fps
+    from 4 m, 1.25 cm a pixel). ``yaw_deg`` is the floor-frame heading of the image's +u
+    axis; its +v axis points 90 degrees clockwise of that (image rows grow downwards)."""
+
+    id: str = Field(min_length=1)
+    x_mm: Coordinate
+    y_mm: Coordinate
+    height_mm: Size = 4000.0
+    yaw_deg: StrictFloat = Field(0.0, ge=-360, le=360)
+    width_px: StrictInt = Field(320, ge=16, le=8192)
+    height_px: StrictInt = Field(240, ge=16, le=8192)
+    fov_deg: StrictFloat = Field(
+        53.13, gt=1, lt=170, description="horizontal field of view (53.13: 4 m wide from 4 m)"
+    )
+    fps: StrictFloat = Field(10.0, gt=0, le=120)
+    marks: list[FloorMark] = Field(
+        [],
+        description="floor marks and their pixels, four or more: the calibration's "
+        "homography from them (none: the nominal one from the pose and lens above)",
+    )
+
+
 class AngleZone(_Model):
     """A stretch of hallway where both walls are flat, so side sensors can measure heading."""
 
@@ -209,6 +242,7 @@ class Floor(_Model):
     anchors: list[Anchor] = []
     parking: list[ParkingSpot] = []
     """A fleet's robots' places to wait, one each (in the tea room's floor)."""
+    cameras: list[Camera] = []
 
     # --- hallway frame ---------------------------------------------------------------------
 
@@ -433,6 +467,8 @@ _ELEMENT_NAMES = {
     "walls": "wall",
     "angle_zones": "angle zone",
     "anchors": "anchor",
+    "cameras": "camera",
+    "marks": "mark",
 }
 
 
@@ -511,12 +547,14 @@ def _check_consistency(plan: FloorPlan, path: str | Path) -> None:
                 )
             _check_angle_zone_clear(floor, zone, path)
         _check_anchors_near(floor, path)
+        _check_cameras(floor, path)
         elevators = [d for d in floor.doors if d.kind == "elevator"]
         if len(elevators) > 1:
             raise FloorPlanError(path, f"{where} / door {elevators[1].id}", "second elevator door")
         if len(plan.floors) > 1 and not elevators:
             raise FloorPlanError(path, where, "no elevator door in a building of several floors")
     _check_elevator_aligned(plan, path)
+    _check_camera_ids_unique(plan, path)
     tea_rooms = [(f, d) for f in plan.floors for d in f.doors if d.kind == "tea_room"]
     if len(tea_rooms) != 1:
         raise FloorPlanError(
@@ -563,6 +601,42 @@ def _check_anchors_near(floor: Floor, path: str | Path) -> None:
                     f"{field}: {value:.0f} lies {outside:.0f} mm outside the floor's hallway "
                     f"and rooms ({lo:.0f}..{hi:.0f} mm; at most {ANCHOR_MARGIN_MM:.0f} allowed)",
                 )
+
+
+def _check_cameras(floor: Floor, path: str | Path) -> None:
+    """A camera must hang over the floor it watches and its calibration must be one to
+    trust: robots it sees are placed by it."""
+    # Imported here: the camera modules build on this module's models.
+    from coffeebot.cameras.calibration import calibrate
+
+    ends = floor.segment_array[:, :4]
+    xs, ys = ends[:, 0::2], ends[:, 1::2]
+    for camera in floor.cameras:
+        for field, value, coords in (("x_mm", camera.x_mm, xs), ("y_mm", camera.y_mm, ys)):
+            lo, hi = float(coords.min()), float(coords.max())
+            if not lo <= value <= hi:
+                raise FloorPlanError(
+                    path,
+                    f"floor {floor.level} / camera {camera.id}",
+                    f"{field}: {value:.0f} lies outside the floor's hallway and rooms "
+                    f"({lo:.0f}..{hi:.0f} mm)",
+                )
+        calibrate(camera, floor=floor.level, path=path)
+
+
+def _check_camera_ids_unique(plan: FloorPlan, path: str | Path) -> None:
+    """A camera's id names its images and fixes across the building, whatever the floor."""
+    levels: dict[str, int] = {}
+    for floor in plan.floors:
+        for camera in floor.cameras:
+            if camera.id in levels:
+                raise FloorPlanError(
+                    path,
+                    f"floor {floor.level} / camera {camera.id}",
+                    f"duplicate id: floor {levels[camera.id]} has a camera {camera.id!r} too "
+                    "(camera ids are unique in the building)",
+                )
+            levels[camera.id] = floor.level
 
 
 def _elevator_front(floor: Floor, door: Door) -> tuple[np.ndarray, np.ndarray]:
@@ -631,6 +705,7 @@ def plan_warnings(
     for floor in plan.floors:
         warnings += _uwb_coverage_gaps(floor, uwb_range_mm)
         warnings += _unseen_doors(floor, min_recess_mm)
+        warnings += _unchecked_cameras(floor)
     return warnings
 
 
@@ -676,3 +751,28 @@ def _unseen_doors(floor: Floor, min_recess_mm: float) -> list[PlanWarning]:
         for door in sorted(floor.doors, key=lambda d: d.at_mm)
         if not door.open and door.recess_mm < min_recess_mm
     ]
+
+
+def _unchecked_cameras(floor: Floor) -> list[PlanWarning]:
+    """Cameras whose calibration nothing checks: without marks the pose and lens alone place
+    what the camera sees; through exactly four the homography fits them all exactly."""
+    warnings = []
+    for camera in floor.cameras:
+        element = f"floor {floor.level} / camera {camera.id}"
+        if not camera.marks:
+            warnings.append(
+                PlanWarning(
+                    element,
+                    "marks: none, so its pose and lens alone place what it sees (a bracket "
+                    "one degree askew: 45 mm at 2.6 m): tape four to six marks to calibrate it",
+                )
+            )
+        elif len(camera.marks) == 4:
+            warnings.append(
+                PlanWarning(
+                    element,
+                    "marks: 4, which the homography fits exactly: a misread one shows only "
+                    "if it disagrees with the camera's pose, a fifth would check them",
+                )
+            )
+    return warnings

@@ -7,10 +7,13 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 
+from coffeebot.cameras.geometry import nominal_homography, project
 from coffeebot.cli import main
 from coffeebot.floorplan import (
+    Camera,
     FloorPlan,
     FloorPlanError,
     PlanWarning,
@@ -296,6 +299,130 @@ def test_an_elevator_on_a_hallway_surveyed_the_other_way_is_the_same_car(
     assert parse_floorplan(raw).floor(2).elevator is not None
 
 
+# --- ceiling cameras ------------------------------------------------------------------------
+
+
+def _with_camera(plan_dict: Callable[..., dict[str, Any]]) -> dict[str, Any]:
+    """The tiny plan with camera "c1" over its hallway at s = 5000 mm, 2600 mm up with a
+    90-degree lens (5.2 x 3.9 m of floor), and six marks in the hallway (no three in a line)
+    at the pixels its nominal model gives them."""
+    raw = plan_dict()
+    camera = Camera(id="c1", x_mm=5000.0, y_mm=0.0, height_mm=2600.0, fov_deg=90.0)
+    points = [(2700.0, 700.0), (2700.0, -700.0), (4300.0, -250.0), (5700.0, 350.0)]
+    points += [(7300.0, 700.0), (7300.0, -700.0)]
+    pixels = project(nominal_homography(camera), np.array(points))
+    marks = [
+        {"x_mm": x, "y_mm": y, "u_px": round(float(u), 1), "v_px": round(float(v), 1)}
+        for (x, y), (u, v) in zip(points, pixels, strict=True)
+    ]
+    raw["floors"][0]["cameras"] = [
+        {"id": "c1", "x_mm": 5000, "y_mm": 0, "height_mm": 2600, "fov_deg": 90, "marks": marks}
+    ]
+    return raw
+
+
+def test_a_calibrated_camera_loads(plan_dict: Callable[..., dict[str, Any]]) -> None:
+    camera = parse_floorplan(_with_camera(plan_dict)).floors[0].cameras[0]
+    assert (camera.id, camera.width_px, camera.height_px, len(camera.marks)) == ("c1", 320, 240, 6)
+
+
+def _set_mark(index: int, **fields: Any) -> Callable[[dict[str, Any]], None]:
+    return lambda camera: camera["marks"][index].update(fields)
+
+
+@pytest.mark.parametrize(
+    ("change", "element", "problem"),
+    [
+        (
+            lambda camera: camera.update(x_mm=50000),
+            "floor 1 / camera c1",
+            "x_mm: 50000 lies outside the floor's hallway and rooms (0..10000 mm)",
+        ),
+        (
+            lambda camera: camera.update(height_mm="2600"),
+            "floor 1 / camera c1",
+            "height_mm: a number was expected, not the string '2600'",
+        ),
+        (
+            _set_mark(1, u_px=-3),
+            "floor 1 / camera c1 / mark #2",
+            "u_px: Input should be greater than or equal to 0",
+        ),
+        (
+            _set_mark(1, v_px=250.0),
+            "floor 1 / camera c1 / mark #2",
+            "u_px, v_px: (18.5, 250.0) lies outside the camera's 320 x 240 image",
+        ),
+        (
+            lambda camera: camera.update(marks=camera["marks"][:3]),
+            "floor 1 / camera c1",
+            "marks: 3 given, a calibration needs at least 4",
+        ),
+        (
+            _set_mark(2, x_mm=5300),
+            "floor 1 / camera c1",
+            "mark #3 mismeasured or mistyped, the others agree without it",
+        ),
+        (
+            lambda camera: camera.update(yaw_deg=90),
+            "floor 1 / camera c1",
+            "marks: put the image's top-left corner",
+        ),
+    ],
+    ids=[
+        "off the floor",
+        "string",
+        "negative pixel",
+        "outside the image",
+        "three marks",
+        "mistyped mark",
+        "mistyped yaw",
+    ],
+)
+def test_camera_errors(
+    plan_dict: Callable[..., dict[str, Any]],
+    change: Callable[[dict[str, Any]], None],
+    element: str,
+    problem: str,
+) -> None:
+    raw = _with_camera(plan_dict)
+    change(raw["floors"][0]["cameras"][0])
+    error = _error(raw)
+    assert error.element == element
+    assert problem in error.problem
+    assert "\n" not in str(error)
+
+
+def test_camera_ids_are_unique_in_the_building(plan_dict: Callable[..., dict[str, Any]]) -> None:
+    """Two floors, one car: the same camera over the same place on floor 2 keeps its id."""
+    raw = _two_floors(plan_dict)
+    raw["floors"][0]["cameras"] = _with_camera(plan_dict)["floors"][0]["cameras"]
+    raw["floors"][1]["cameras"] = _with_camera(plan_dict)["floors"][0]["cameras"]
+    error = _error(raw)
+    assert error.element == "floor 2 / camera c1"
+    assert error.problem == (
+        "duplicate id: floor 1 has a camera 'c1' too (camera ids are unique in the building)"
+    )
+    raw["floors"][1]["cameras"][0]["id"] = "c2"
+    assert [c.id for f in parse_floorplan(raw).floors for c in f.cameras] == ["c1", "c2"]
+
+
+def test_a_mistyped_mark_in_the_shipped_file_names_the_file_floor_and_camera(
+    tmp_path: Path,
+) -> None:
+    text = CS_BUILDING.read_text()
+    mark = "{ x_mm = 39700, y_mm = 700,"
+    assert mark in text
+    copy = tmp_path / "cs.toml"
+    copy.write_text(text.replace(mark, "{ x_mm = 38700, y_mm = 700,", 1))
+    with pytest.raises(
+        FloorPlanError,
+        match=r"^\S*cs\.toml: floor 2 / camera lobby-2: marks: reprojection error \d+\.\d px RMS "
+        r"\(at most 1\.5\): mark #1 mismeasured or mistyped, the others agree without it$",
+    ):
+        load_floorplan(copy)
+
+
 # --- warnings: what a valid plan leaves the robot to do poorly ------------------------------
 
 
@@ -340,3 +467,19 @@ def test_the_plan_check_prints_the_warnings_without_a_recording(
     ]
     assert main(["floorplan", "check", "--floorplan", str(CS_BUILDING)]) == 0
     assert capsys.readouterr().err == ""
+
+
+def test_a_camera_whose_calibration_nothing_checks_is_a_warning(
+    plan_dict: Callable[..., dict[str, Any]],
+) -> None:
+    """Without marks its pose alone places what it sees; four marks fit any homography."""
+    raw = _with_camera(plan_dict)
+    camera = raw["floors"][0]["cameras"][0]
+    second = {**camera, "id": "c2", "marks": []}
+    camera["marks"] = [camera["marks"][i] for i in (0, 1, 4, 5)]
+    raw["floors"][0]["cameras"].append(second)
+    warnings = plan_warnings(parse_floorplan(raw), uwb_range_mm=25_000, min_recess_mm=100)
+    assert [(w.element, w.problem.split(",")[0]) for w in warnings] == [
+        ("floor 1 / camera c1", "marks: 4"),
+        ("floor 1 / camera c2", "marks: none"),
+    ]
