@@ -1,0 +1,269 @@
+"""Naming camera tracks after robots by their motion (seed 003, eqs 1-9), and refusing to guess."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from coffeebot.cameras.identify import IdentifyRules, fit_similarity, identify
+
+RULES = IdentifyRules()
+Q = 50
+"""Waypoints per path: 10 s at 5 Hz."""
+DT_S = 0.2
+
+
+def drive(
+    start: tuple[float, float, float], speed_mm_s: float, turn_rad_s: np.ndarray | float
+) -> np.ndarray:
+    """A robot's true floor poses (Q, 3) from a start pose and per-step speed and turn rate."""
+    turns = np.broadcast_to(np.asarray(turn_rad_s, dtype=float), (Q - 1,))
+    poses = np.empty((Q, 3))
+    poses[0] = start
+    for k, turn in enumerate(turns):
+        x, y, heading = poses[k]
+        poses[k + 1] = (
+            x + speed_mm_s * DT_S * math.cos(heading),
+            y + speed_mm_s * DT_S * math.sin(heading),
+            heading + turn * DT_S,
+        )
+    return poses
+
+
+def odometry_of(truth: np.ndarray) -> np.ndarray:
+    """The same poses in the robot's odometry frame, which starts where the robot started."""
+    x0, y0, h0 = truth[0]
+    c, s = math.cos(h0), math.sin(h0)
+    dx, dy = truth[:, 0] - x0, truth[:, 1] - y0
+    return np.column_stack([c * dx + s * dy, -s * dx + c * dy, truth[:, 2] - h0])
+
+
+def camera_track(truth: np.ndarray, rng: np.random.Generator, noise_mm: float) -> np.ndarray:
+    return truth[:, :2] + rng.normal(0.0, noise_mm, (Q, 2))
+
+
+def person_wandering(rng: np.random.Generator, start: tuple[float, float]) -> np.ndarray:
+    """A person dawdling about one spot: 80 mm steps in random directions."""
+    angles = rng.uniform(0.0, 2 * np.pi, Q)
+    return np.asarray(start) + np.cumsum(
+        80.0 * np.column_stack([np.cos(angles), np.sin(angles)]), axis=0
+    )
+
+
+def person_walking(rng: np.random.Generator, start: tuple[float, float]) -> np.ndarray:
+    """A person crossing the room at 1 m/s, drifting off course."""
+    angles = rng.uniform(0.0, 2 * np.pi) + np.cumsum(rng.normal(0.0, 0.3, Q))
+    return np.asarray(start) + np.cumsum(
+        200.0 * np.column_stack([np.cos(angles), np.sin(angles)]), axis=0
+    )
+
+
+def heading_error(a: float, b: float) -> float:
+    return abs(math.remainder(a - b, 2 * math.pi))
+
+
+def test_fit_recovers_a_known_similarity_exactly() -> None:
+    rng = np.random.default_rng(1)
+    odometry = rng.uniform(-2000.0, 2000.0, (30, 2))
+    scale, rotation, shift = 1.07, 2.3, np.array([3200.0, -1450.0])
+    c, s = math.cos(rotation), math.sin(rotation)
+    seen = scale * odometry @ np.array([[c, -s], [s, c]]).T + shift
+
+    fit = fit_similarity(odometry, seen)
+
+    assert fit.scale == pytest.approx(scale, rel=1e-9)
+    assert fit.rotation_rad == pytest.approx(rotation, abs=1e-9)
+    assert (fit.a0, fit.b0) == pytest.approx((scale * c, scale * s), abs=1e-9)
+    assert (fit.x0_mm, fit.y0_mm) == pytest.approx(tuple(shift), abs=1e-6)
+    assert fit.error_mm < 1e-6
+    np.testing.assert_allclose(fit.to_floor(odometry), seen, atol=1e-6)
+
+
+def test_the_error_is_the_mean_distance_left_after_the_fit() -> None:
+    """Eight points on a circle pushed out and in by 40 mm * cos(2 angle): no rotation,
+    scale or shift undoes that, so the fit is the identity and eq 7 averages 40, 0, 40, 0..."""
+    angles = np.arange(8) * np.pi / 4
+    radial = np.column_stack([np.cos(angles), np.sin(angles)])
+    odometry = 1000.0 * radial
+    seen = odometry + 40.0 * np.cos(2 * angles)[:, None] * radial
+
+    fit = fit_similarity(odometry, seen)
+
+    assert (fit.scale, fit.rotation_rad, fit.x0_mm, fit.y0_mm) == pytest.approx(
+        (1.0, 0.0, 0.0, 0.0), abs=1e-9
+    )
+    assert fit.error_mm == pytest.approx(20.0, abs=1e-9)
+
+
+def test_fit_with_10_mm_of_camera_noise_is_within_a_few_mm() -> None:
+    rng = np.random.default_rng(2)
+    truth = drive((1500.0, 800.0, 0.9), 300.0, 0.25)
+    fit = fit_similarity(odometry_of(truth)[:, :2], camera_track(truth, rng, 10.0))
+
+    assert fit.scale == pytest.approx(1.0, abs=0.01)
+    assert heading_error(fit.rotation_rad, 0.9) < math.radians(0.5)
+    assert math.hypot(fit.x0_mm - 1500.0, fit.y0_mm - 800.0) < 8.0
+    # Eq 7 is a mean distance: 10 mm per axis leaves about 10 * sqrt(pi / 2) = 12.5 mm.
+    assert 9.0 < fit.error_mm < 16.0
+
+
+def test_the_error_is_small_for_the_robot_and_large_for_a_person() -> None:
+    """Eq 7 alone rejects a person who walks, not one who dawdles: the fit may shrink the
+    robot's path onto her spot, which bounds the error by her own spread. The scale shows it."""
+    rng = np.random.default_rng(3)
+    truth = drive((2000.0, 1000.0, -0.4), 300.0, np.linspace(-0.4, 0.4, Q - 1))
+    odometry = odometry_of(truth)[:, :2]
+
+    robot = fit_similarity(odometry, camera_track(truth, rng, 10.0))
+    walker = fit_similarity(odometry, person_walking(rng, (2100.0, 1200.0)))
+    dawdler = fit_similarity(odometry, person_wandering(rng, (2100.0, 1200.0)))
+
+    assert robot.error_mm < 20.0
+    assert robot.scale == pytest.approx(1.0, abs=0.01)
+    assert walker.error_mm > 2 * RULES.gate_mm
+    assert dawdler.error_mm > 5 * robot.error_mm
+    assert dawdler.scale < 0.5
+
+
+def test_two_robots_and_a_person_are_told_apart() -> None:
+    rng = np.random.default_rng(4)
+    alpha = drive((500.0, 500.0, 0.3), 300.0, 0.2)
+    bravo = drive((3500.0, 2500.0, 3.0), 250.0, -0.3)
+    tracks = {
+        "t1": person_wandering(rng, (2000.0, 1500.0)),
+        "t2": camera_track(bravo, rng, 10.0),
+        "t3": camera_track(alpha, rng, 10.0),
+    }
+    robots = {"alpha": odometry_of(alpha), "bravo": odometry_of(bravo)}
+
+    result = identify(tracks, robots, RULES)
+
+    assert {robot: match.track_id for robot, match in result.matched.items()} == {
+        "alpha": "t3",
+        "bravo": "t2",
+    }
+    assert result.refused == {}
+    assert result.unmatched_tracks == ["t1"]
+
+
+def test_a_matched_robots_pose_is_its_true_pose() -> None:
+    rng = np.random.default_rng(5)
+    truth = drive((3000.0, 2000.0, 2.0), 300.0, np.linspace(0.5, -0.5, Q - 1))
+    result = identify({"t1": camera_track(truth, rng, 10.0)}, {"alpha": odometry_of(truth)}, RULES)
+
+    pose = result.matched["alpha"].pose
+    x, y, heading = truth[-1]
+    assert math.hypot(pose.x_mm - x, pose.y_mm - y) < 8.0
+    assert heading_error(pose.heading_rad, heading) < math.radians(0.5)
+
+
+def test_a_robot_that_stood_still_is_refused() -> None:
+    """It fits a standing blob as well as a moving robot fits its own track: motion tells."""
+    rng = np.random.default_rng(6)
+    mover = drive((500.0, 500.0, 0.0), 300.0, 0.2)
+    standing = np.tile([2000.0, 2500.0, 0.4], (Q, 1))
+    blob = np.array([2500.0, 2000.0]) + rng.normal(0.0, 10.0, (Q, 2))
+    # The pseudo-inverse's least-norm answer for a path that is one point: a close fit, at
+    # about the right scale, of a rotation and translation that mean nothing.
+    degenerate = fit_similarity(standing[:, :2], blob)
+    assert degenerate.error_mm < RULES.gate_mm
+    assert degenerate.scale == pytest.approx(RULES.expected_scale, abs=RULES.scale_tolerance)
+
+    result = identify(
+        {"t1": blob, "t2": camera_track(mover, rng, 10.0)},
+        {"alpha": odometry_of(mover), "bravo": standing},
+        RULES,
+    )
+
+    assert result.refused["bravo"].startswith("did not move enough")
+    assert result.matched["alpha"].track_id == "t2"
+    assert result.unmatched_tracks == ["t1"]
+
+
+def test_a_robot_whose_track_is_missing_is_refused() -> None:
+    rng = np.random.default_rng(7)
+    truth = drive((500.0, 500.0, 0.0), 300.0, 0.2)
+    result = identify(
+        {"t1": person_walking(rng, (800.0, 900.0))}, {"alpha": odometry_of(truth)}, RULES
+    )
+
+    assert result.matched == {}
+    assert result.refused["alpha"].startswith("no track fits within 150 mm")
+    assert result.unmatched_tracks == ["t1"]
+
+
+@pytest.mark.parametrize(
+    ("bravo_turn_rad_s", "alpha_outcome", "bravo_outcome"),
+    [
+        (0.28, "t1", "its fitting tracks fit other robots better: t1 (robot alpha)"),
+        (0.21, "ambiguous: robots alpha and bravo fit track t1 within 2x", None),
+    ],
+    ids=["clearly-alpha", "too-close-to-call"],
+)
+def test_a_track_two_robots_fit_goes_to_the_clearly_better_one_or_to_none(
+    bravo_turn_rad_s: float, alpha_outcome: str, bravo_outcome: str | None
+) -> None:
+    """Bravo's own track is out of view, and its curve is a little tighter than alpha's."""
+    rng = np.random.default_rng(10)
+    alpha = drive((500.0, 500.0, 0.0), 300.0, 0.2)
+    bravo = drive((2500.0, 500.0, 1.0), 300.0, bravo_turn_rad_s)
+    result = identify(
+        {"t1": camera_track(alpha, rng, 10.0)},
+        {"alpha": odometry_of(alpha), "bravo": odometry_of(bravo)},
+        RULES,
+    )
+
+    alpha_match = result.matched.get("alpha")
+    assert (alpha_match.track_id if alpha_match else result.refused["alpha"]) == alpha_outcome
+    if bravo_outcome is None:
+        assert "bravo" in result.refused
+    else:
+        assert result.refused["bravo"] == bravo_outcome
+
+
+@pytest.mark.parametrize("turn_rad_s", [0.0, 0.15], ids=["straight", "curving"])
+def test_robots_driving_alike_side_by_side_are_refused_never_swapped(turn_rad_s: float) -> None:
+    """Each odometry starts at its own origin, so two robots given the same commands report
+    the same path; the similarity's translation absorbs the metre between them. Straight or
+    curved, nothing in the fit can tell them apart."""
+    rng = np.random.default_rng(8)
+    alpha = drive((1000.0, 1000.0, 0.0), 300.0, turn_rad_s)
+    bravo = drive((1000.0, 2000.0, 0.0), 300.0, turn_rad_s)
+    tracks = {"t1": camera_track(alpha, rng, 10.0), "t2": camera_track(bravo, rng, 10.0)}
+    robots = {"alpha": odometry_of(alpha), "bravo": odometry_of(bravo)}
+    assert fit_similarity(robots["alpha"][:, :2], tracks["t2"]).error_mm < 20.0
+
+    result = identify(tracks, robots, RULES)
+
+    assert result.matched == {}
+    assert set(result.refused) == {"alpha", "bravo"}
+    assert all(reason.startswith("ambiguous") for reason in result.refused.values())
+    assert result.unmatched_tracks == ["t1", "t2"]
+
+
+def test_robots_side_by_side_at_different_speeds_are_told_apart_by_scale() -> None:
+    """The same straight line at 300 and 400 mm/s: each fits the other's track perfectly, but
+    only at a scale of 4/3 or 3/4, which no odometry is that wrong by."""
+    rng = np.random.default_rng(9)
+    alpha = drive((1000.0, 1000.0, 0.0), 300.0, 0.0)
+    bravo = drive((1000.0, 2000.0, 0.0), 400.0, 0.0)
+    tracks = {"t1": camera_track(bravo, rng, 10.0), "t2": camera_track(alpha, rng, 10.0)}
+    robots = {"alpha": odometry_of(alpha), "bravo": odometry_of(bravo)}
+    swapped = fit_similarity(robots["alpha"][:, :2], tracks["t1"])
+    assert swapped.error_mm < 20.0
+    assert swapped.scale == pytest.approx(4 / 3, abs=0.02)
+
+    result = identify(tracks, robots, RULES)
+
+    assert result.matched["alpha"].track_id == "t2"
+    assert result.matched["bravo"].track_id == "t1"
+
+
+def test_paths_of_different_lengths_are_rejected() -> None:
+    truth = drive((0.0, 0.0, 0.0), 300.0, 0.2)
+    with pytest.raises(ValueError, match="same q"):
+        identify({"t1": truth[:-1, :2]}, {"alpha": odometry_of(truth)}, RULES)
+    with pytest.raises(ValueError, match="same q"):
+        fit_similarity(odometry_of(truth)[:, :2], truth[1:, :2])
