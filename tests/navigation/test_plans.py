@@ -143,14 +143,17 @@ def test_a_fleet_robot_out_of_the_car_waits_for_the_loading_spot_at_the_holding_
         assert leases[:2] == [Lease("holding_point", True), Lease("elevator", True)]
         assert Lease("loading_spot", True) not in steps[: steps.index(Lease("elevator", True))]
         at = next(i for i, s in enumerate(steps) if isinstance(s, ElevatorRide))
-        hold, back, ask = steps[at + 1 : at + 4]
-        assert isinstance(hold, Move) and hold.instruction.stop
+        hold, back, turn, ask = steps[at + 1 : at + 5]
+        assert isinstance(hold, Move) and hold.instruction.action == "drive_to"
         assert (back, ask) == (Lease("elevator", False), Lease("loading_spot", True))
-        # Towards the dead end, the whole body clear of both doorways, and a body's length
-        # before the end wall to turn round in (at 1.2 m from the car, 400 mm from the wall,
-        # the robot's turn back was held by the wall ahead for good).
-        s = hold.instruction.target_s_mm
-        assert s is not None and s > elevator.at_mm
+        assert isinstance(turn, Move) and turn.instruction.heading_deg == 180.0
+        # Towards the dead end on the hallway's axis, the whole body clear of both doorways,
+        # and a body's length before the end wall to turn round in (at 1.2 m from the car,
+        # 400 mm from the wall, the turn back was held by the wall ahead for good; in a
+        # lane, the body's corners swung into the side wall).
+        assert hold.instruction.x_mm is not None and hold.instruction.y_mm is not None
+        s, d = floor.to_hallway(hold.instruction.x_mm, hold.instruction.y_mm)
+        assert s > elevator.at_mm and abs(d) < 1.0
         half = CONFIG.geometry.length_mm / 2
         for doorway in (door, elevator):
             assert s - half >= doorway.at_mm + doorway.width_mm / 2 + 100.0

@@ -325,10 +325,15 @@ class RoutePlanner:
         is then."""
         holding = self._holding_point(goal)
         if holding is not None and abs(goal.door.at_mm - s) <= self._elevator_hold_mm:
+            # On the hallway's axis, where the half turn back has room on both sides (in a
+            # lane, 150 mm off it after the quarter turn out of the car, the body's corners
+            # swung into the wall and the turn never ended); turned back at once, so a
+            # granted spot is driven to straight away. The turn about the axle carries the
+            # centre twice ``pivot_mm`` on.
             direction = 1.0 if holding >= s else -1.0
-            lane = self.lane_mm(floor, direction)
-            wait = self._lane(floor, holding, lane, detail="to the holding point")
-            return [wait, Lease("elevator", False)], holding
+            wait = self._drive_to(floor, floor.from_hallway(holding, 0.0), "to the holding point")
+            back = self._turn(floor, self.travel_deg(floor, -direction), "facing back")
+            return [wait, Lease("elevator", False), back], holding + direction * 2 * self.pivot_mm
         direction = 1.0 if goal.door.at_mm >= s else -1.0
         clear_at = s + direction * self._elevator_hold_mm
         if (goal.door.at_mm - clear_at) * direction <= 0:
