@@ -101,9 +101,9 @@ class IdentifyRules(BaseModel):
     margin: float = Field(
         2.0,
         ge=1,
-        description="a match stands only if every other plausible fit of its robot or its "
-        "track is more than this many times worse. A right fit's error is mostly camera "
-        "noise (12 mm for 10 mm of jitter); a runner-up within 2x of it could be the right "
+        description="a match stands only if every other fit at the expected scale of its "
+        "robot or its track is more than this many times worse. A right fit's error is mostly "
+        "camera noise (12 mm for 10 mm of jitter); a runner-up within 2x of it could be the right "
         "one seen through worse noise or a half-hidden blob, one past it misfits by as much "
         "again as all the noise",
     )
@@ -169,9 +169,11 @@ def identify(
 
     A (robot, track) pair is plausible when the robot moved enough and the fit's scale is as
     expected, admissible when its error is also within the gate. The assignment minimises the
-    total error over admissible pairs; an assigned pair is then refused if another plausible
-    fit of the same robot or the same track is within ``margin`` times its error. Rivals may
-    be just outside the gate: a fit at 160 mm is no less a rival of one at 140 mm for it.
+    total error over admissible pairs; an assigned pair is then refused if another fit of the
+    same robot or the same track at the expected scale is within ``margin`` times its error.
+    Rivals may be just outside the gate: a fit at 160 mm is no less a rival of one at 140 mm
+    for it. Nor need a rival robot have moved enough to be named: one that crept 290 mm along
+    a track may well be the one on it.
     """
     _check_paths(tracks, robots)
     seen = {track_id: np.asarray(path, dtype=float) for track_id, path in tracks.items()}
@@ -206,7 +208,7 @@ def identify(
             )
         else:
             j = assigned[i]
-            ambiguity = _ambiguity(i, j, errors, plausible, robot_ids, track_ids, rules.margin)
+            ambiguity = _ambiguity(i, j, errors, scale_ok, robot_ids, track_ids, rules.margin)
             if ambiguity:
                 refused[robot_id] = ambiguity
             else:
@@ -272,7 +274,7 @@ def _ambiguity(
     robot: int,
     track: int,
     errors: np.ndarray,
-    plausible: np.ndarray,
+    at_scale: np.ndarray,
     robot_ids: list[str],
     track_ids: list[str],
     margin: float,
@@ -280,12 +282,12 @@ def _ambiguity(
     """Why the assigned pair is ambiguous, or "" if it is not. At or below ``margin`` times
     its error counts as close, so two perfect (zero-error) fits are ambiguous too."""
     bound = margin * errors[robot, track]
-    rival_tracks = [j for j in _indices(plausible[robot] & (errors[robot] <= bound)) if j != track]
+    rival_tracks = [j for j in _indices(at_scale[robot] & (errors[robot] <= bound)) if j != track]
     if rival_tracks:
         names = " and ".join(track_ids[j] for j in [track, *rival_tracks])
         return f"ambiguous: tracks {names} fit within {margin:g}x"
     rival_robots = [
-        i for i in _indices(plausible[:, track] & (errors[:, track] <= bound)) if i != robot
+        i for i in _indices(at_scale[:, track] & (errors[:, track] <= bound)) if i != robot
     ]
     if rival_robots:
         names = " and ".join(robot_ids[i] for i in [robot, *rival_robots])
