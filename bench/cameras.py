@@ -774,8 +774,13 @@ def run_trial(plan: TrialPlan, setup: Setup, window_s: float = WINDOW_S) -> Tria
         if len(frame_times) < window:
             continue
         times = np.array(frame_times[-window:])
-        resampled = {tr.id: tr.resample(times) for tr in tracks}
-        covering = {i: path for i, path in resampled.items() if not np.isnan(path).any()}
+        # Tracks followed over the whole window; their stretches cut by the image's border
+        # come as NaN rows, which the fits leave out.
+        covering = {
+            tr.id: tr.resample(times)
+            for tr in tracks
+            if tr.spans(float(times[0]), float(times[-1]))
+        }
         odometry_paths = {
             r.name: np.array(poses[-window:]) for r, poses in zip(plan.robots, history, strict=True)
         }

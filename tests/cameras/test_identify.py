@@ -290,3 +290,40 @@ def test_a_robot_too_slow_to_be_named_still_keeps_another_off_its_track() -> Non
     assert result.refused["alpha"].startswith("did not move enough (290 mm")
     assert result.refused["bravo"] == "ambiguous: robots bravo and alpha fit track t1 within 2x"
     assert result.unmatched_tracks == ["t1"]
+
+
+def test_waypoints_where_the_blob_was_cut_by_the_border_are_left_out_of_the_fit() -> None:
+    """Driving into view, a robot's blob is cut by the image's edge and its centroid lags
+    (here: the first 20 waypoints at half the robot's progress). As NaN rows those are left
+    out and the robot is named on the rest; fitted as they are, its own fit is off scale
+    and another robot driving straight fits its track instead."""
+    rng = np.random.default_rng(11)
+    alpha = drive((500.0, 1500.0, 0.0), 400.0, 0.0)
+    bravo = drive((500.0, -2500.0, 0.4), 300.0, 0.0)
+    lagging = camera_track(alpha, rng, 5.0)
+    lagging[:20, 0] = alpha[20, 0] - 0.5 * (alpha[20, 0] - alpha[:20, 0])
+    masked = lagging.copy()
+    masked[:20] = np.nan
+    robots = {"alpha": odometry_of(alpha), "bravo": odometry_of(bravo)}
+
+    result = identify({"t1": masked}, robots, RULES)
+    assert result.matched["alpha"].track_id == "t1"
+    assert math.dist(result.matched["alpha"].pose[:2], alpha[-1, :2]) < 10.0
+
+    as_seen = identify({"t1": lagging}, robots, RULES)
+    assert "alpha" not in as_seen.matched
+    assert as_seen.matched["bravo"].track_id == "t1", "the wrong match the mask prevents"
+
+
+def test_a_track_seen_whole_too_briefly_is_neither_a_match_nor_a_rival() -> None:
+    rng = np.random.default_rng(12)
+    alpha = drive((500.0, 1500.0, 0.2), 350.0, 0.1)
+    glimpse = camera_track(alpha, rng, 5.0)
+    glimpse[: Q - RULES.min_points + 1] = np.nan
+    result = identify(
+        {"t1": glimpse, "t2": camera_track(alpha, rng, 5.0)}, {"alpha": odometry_of(alpha)}, RULES
+    )
+    assert result.matched["alpha"].track_id == "t2"
+    alone = identify({"t1": glimpse}, {"alpha": odometry_of(alpha)}, RULES)
+    assert alone.matched == {}
+    assert "no track seen whole" in alone.refused["alpha"]

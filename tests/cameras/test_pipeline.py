@@ -305,3 +305,19 @@ def test_a_frame_of_the_wrong_size_or_time_is_refused() -> None:
     pipeline.step(scene.frame(), t_s)
     with pytest.raises(ValueError, match="not after"):
         pipeline.step(scene.frame(), t_s)
+
+
+def test_a_robot_driving_out_of_view_is_marked_cut_once_it_touches_the_border() -> None:
+    """The camera sees x 0..4000 mm: the body (610 mm long, along x) reaches the border when
+    its centre passes 3695 mm, and from there its blob is only the part still in view."""
+    scene = Scene()
+    pipeline, clock = learned_pipeline(scene)
+    cuts: dict[float, bool] = {}
+    for k in range(22):
+        x = 3000.0 + 50.0 * k
+        detections = pipeline.step(scene.frame([robot(x, 1500.0, 0.0)]), next(clock))
+        if detections:
+            cuts[x] = nearest(detections, x, 1500.0).cut
+    assert not any(cut for x, cut in cuts.items() if x < 3600.0)
+    assert all(cut for x, cut in cuts.items() if x > 3750.0)
+    assert any(x > 3750.0 for x in cuts), "still seen, in part, past the border"

@@ -15,7 +15,9 @@ SETTINGS = TrackerSettings()
 PERIOD_S = 0.1
 
 
-def seen(t_s: float, x_mm: float, y_mm: float, camera_id: str = "lab") -> Detection:
+def seen(
+    t_s: float, x_mm: float, y_mm: float, camera_id: str = "lab", cut: bool = False
+) -> Detection:
     return Detection(
         t_s=t_s,
         x_mm=x_mm,
@@ -25,6 +27,7 @@ def seen(t_s: float, x_mm: float, y_mm: float, camera_id: str = "lab") -> Detect
         axis_deg=0.0,
         area_mm2=311_100.0,
         camera_id=camera_id,
+        cut=cut,
     )
 
 
@@ -140,3 +143,15 @@ def test_the_history_keeps_only_the_latest_positions() -> None:
     history = track.history
     assert history.shape == (20, 3)
     np.testing.assert_allclose(history[[0, -1], 1], [300.0, 490.0])
+
+
+def test_positions_next_to_a_blob_cut_by_the_border_are_not_given() -> None:
+    """Driving in, the first three blobs were cut by the image's edge: the track is followed
+    from its first sighting, but positions next to those are NaN, not a lagging centroid."""
+    tracker = Tracker(SETTINGS)
+    for k in range(10):
+        (track,) = tracker.update([seen(k * PERIOD_S, 100.0 * k, 0.0, cut=k < 3)], k * PERIOD_S)
+    path = track.resample(np.array([0.05, 0.25, 0.31, 0.35, 0.85]))
+    assert np.isnan(path[:2]).all()
+    np.testing.assert_allclose(path[2:], [[310.0, 0.0], [350.0, 0.0], [850.0, 0.0]])
+    assert track.spans(0.0, 0.9) and not track.spans(-0.1, 0.9)

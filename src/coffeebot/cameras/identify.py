@@ -130,6 +130,13 @@ class IdentifyRules(BaseModel):
         description="floor mm per odometry mm: 1.0 for positions of the robot's footprint; "
         "height / (height - top) for its top read on the floor's homography",
     )
+    min_points: int = Field(
+        10,
+        ge=3,
+        description="waypoints a fit needs where the track saw the whole object (a track's "
+        "NaN rows, a blob cut by the image's border, are left out of its fits): through a "
+        "few points almost any path fits",
+    )
 
 
 class FloorPose(NamedTuple):
@@ -179,14 +186,32 @@ def identify(
     seen = {track_id: np.asarray(path, dtype=float) for track_id, path in tracks.items()}
     odometry = {robot_id: np.asarray(path, dtype=float) for robot_id, path in robots.items()}
     robot_ids, track_ids = list(odometry), list(seen)
-    fits = [[fit_similarity(odometry[r][:, :2], seen[t]) for t in track_ids] for r in robot_ids]
-    errors = np.array([[fit.error_mm for fit in row] for row in fits]).reshape(
-        len(robot_ids), len(track_ids)
-    )
-    scales = np.array([[fit.scale for fit in row] for row in fits]).reshape(errors.shape)
+    whole = {t: ~np.isnan(path).any(axis=1) for t, path in seen.items()}
+    fits = [
+        [_fit_where_seen(odometry[r][:, :2], seen[t], whole[t], rules) for t in track_ids]
+        for r in robot_ids
+    ]
+    errors = np.array(
+        [[math.inf if fit is None else fit.error_mm for fit in row] for row in fits]
+    ).reshape(len(robot_ids), len(track_ids))
+    scales = np.array(
+        [[math.nan if fit is None else fit.scale for fit in row] for row in fits]
+    ).reshape(errors.shape)
+    # Moved enough over the waypoints the pair's fit uses (those the track saw whole).
+    moved = np.array(
+        [
+            [
+                fits[i][j] is not None
+                and _spread_mm(odometry[r][whole[t], :2]) >= rules.min_motion_mm
+                for j, t in enumerate(track_ids)
+            ]
+            for i, r in enumerate(robot_ids)
+        ],
+        dtype=bool,
+    ).reshape(errors.shape)
     spreads = np.array([_spread_mm(odometry[r][:, :2]) for r in robot_ids]).reshape(-1, 1)
     scale_ok = np.abs(scales / rules.expected_scale - 1.0) <= rules.scale_tolerance
-    plausible = (spreads >= rules.min_motion_mm) & scale_ok
+    plausible = moved & scale_ok
     admissible = plausible & (errors <= rules.gate_mm)
 
     # Larger than any sum of admissible errors, so no assignment trades a match for a cheaper one.
@@ -213,10 +238,21 @@ def identify(
                 refused[robot_id] = ambiguity
             else:
                 similarity = fits[i][j]
+                assert similarity is not None  # an admissible pair has a fit
                 pose = similarity.to_floor(odometry[robot_id][-1])
                 matched[robot_id] = Match(track_ids[j], similarity, FloorPose(*map(float, pose)))
     taken = {match.track_id for match in matched.values()}
     return Identification(matched, refused, [t for t in track_ids if t not in taken])
+
+
+def _fit_where_seen(
+    odometry: np.ndarray, seen: np.ndarray, whole: np.ndarray, rules: IdentifyRules
+) -> Similarity | None:
+    """The fit over the waypoints where the track saw the whole object; None with fewer
+    than ``rules.min_points`` of them (no fit, and no rival either)."""
+    if whole.sum() < rules.min_points:
+        return None
+    return fit_similarity(odometry[whole], seen[whole])
 
 
 def _check_paths(tracks: Mapping[str, np.ndarray], robots: Mapping[str, np.ndarray]) -> None:
@@ -267,6 +303,8 @@ def _why_unassigned(
     if errors.shape[1] == 0:
         return reason + " (no tracks)"
     best = int(np.argmin(errors[robot]))
+    if not math.isfinite(errors[robot, best]):
+        return reason + f" (no track seen whole over {rules.min_points} waypoints)"
     return reason + f" (closest: {track_ids[best]} at {errors[robot, best]:.0f} mm)"
 
 

@@ -127,6 +127,10 @@ class Detection:
     about which end is the front."""
     area_mm2: float
     camera_id: str
+    cut: bool = False
+    """The blob touches the image's border: part of the object lies outside the view, so
+    its centroid and size are those of the part seen (a robot driving in seems to move at
+    half its speed), not a position to fit a path to."""
 
 
 class CameraPipeline:
@@ -252,6 +256,13 @@ class CameraPipeline:
         sides = np.diff(corners[:3], axis=0)
         lengths = np.hypot(sides[:, 0], sides[:, 1])
         long_side = sides[int(np.argmax(lengths))]
+        left, top, width, height = cv2.boundingRect(contour)
+        cut = (
+            left <= 0
+            or top <= 0
+            or left + width >= self.camera.width_px
+            or top + height >= self.camera.height_px
+        )
         return Detection(
             t_s=t_s,
             x_mm=float(centroid[0]),
@@ -261,6 +272,7 @@ class CameraPipeline:
             axis_deg=_axis_deg(float(long_side[0]), float(long_side[1])),
             area_mm2=float(area_mm2),
             camera_id=self.camera.id,
+            cut=cut,
         )
 
 

@@ -63,6 +63,8 @@ class Track:
         the tracker on each update."""
         self._history: deque[tuple[float, float, float]] = deque(maxlen=max_history)
         self._history.append((first.t_s, first.x_mm, first.y_mm))
+        self._cut: deque[bool] = deque([first.cut], maxlen=max_history)
+        """Per history row: the blob was cut by the image's border (Detection.cut)."""
 
     @property
     def history(self) -> np.ndarray:
@@ -72,6 +74,7 @@ class Track:
     def extend(self, detection: Detection) -> None:
         self.latest = detection
         self._history.append((detection.t_s, detection.x_mm, detection.y_mm))
+        self._cut.append(detection.cut)
 
     def predict(self, t_s: float, velocity_window_s: float) -> np.ndarray:
         """Where it should be at ``t_s``, going on at its recent velocity."""
@@ -96,7 +99,8 @@ class Track:
 
     def resample(self, times: np.ndarray) -> np.ndarray:
         """Positions (q, 2) at ``times`` by linear interpolation of the history; NaN outside
-        the span it covers, so nothing is compared with where it was never seen."""
+        the span it covers, so nothing is compared with where it was never seen, and NaN
+        next to a blob cut by the image's border, whose centroid is not the object's."""
         history = self.history
         at = np.asarray(times, dtype=float)
         positions = np.column_stack(
@@ -106,7 +110,17 @@ class Track:
             ]
         )
         positions[(at < history[0, 0]) | (at > history[-1, 0])] = np.nan
+        cut = np.array(self._cut, dtype=bool)
+        if cut.any():
+            after = np.clip(np.searchsorted(history[:, 0], at, side="left"), 0, len(cut) - 1)
+            before = np.clip(np.searchsorted(history[:, 0], at, side="right") - 1, 0, len(cut) - 1)
+            positions[cut[after] | cut[before]] = np.nan
         return positions
+
+    def spans(self, start_s: float, end_s: float) -> bool:
+        """Whether it was followed from ``start_s`` to ``end_s`` (cut stretches included)."""
+        history = self.history
+        return bool(history[0, 0] <= start_s and history[-1, 0] >= end_s)
 
 
 class Tracker:
