@@ -40,3 +40,13 @@ def test_a_robots_top_shows_further_out_than_its_footprint() -> None:
     np.testing.assert_allclose(top_h, nominal_homography(SEED, 800.0), atol=1e-9)
     seen = to_plane(floor_h, project(top_h, np.array([[3000.0, 1500.0]])))
     np.testing.assert_allclose(seen, [[3250.0, 1500.0]], atol=1e-6)
+
+
+def test_a_calibrated_view_is_raised_about_its_own_nadir_not_the_surveyed_one() -> None:
+    """The lens hangs 100 mm from where the plan says: the marks' homography knows it, and
+    a robot's top is placed from there (about the surveyed point it was ~50 mm off)."""
+    hung = SEED.model_copy(update={"x_mm": SEED.x_mm + 100.0})
+    calibrated = nominal_homography(hung)
+    np.testing.assert_allclose(
+        raise_plane(calibrated, SEED, 800.0), nominal_homography(hung, 800.0), atol=1e-9
+    )

@@ -62,9 +62,12 @@ def to_plane(homography: np.ndarray, pixels: np.ndarray) -> np.ndarray:
 
 def raise_plane(homography: np.ndarray, camera: Camera, plane_mm: float) -> np.ndarray:
     """The homography of the plane ``plane_mm`` above the floor, from the floor's (nominal
-    or calibrated): the same view scaled about the camera's nadir by the heights' ratio."""
+    or calibrated): the same view scaled about the camera's nadir by the heights' ratio.
+    The nadir is where the homography itself puts the image's centre, not the surveyed
+    position: with calibrated marks, the marks know better where the lens hangs."""
     ratio = camera.height_mm / (camera.height_mm - plane_mm)
-    nadir = np.array([camera.x_mm, camera.y_mm])
+    centre = np.array([[camera.width_px / 2, camera.height_px / 2]])
+    nadir = to_plane(homography, centre)[0]
     scale = np.eye(3)
     scale[:2, :2] *= ratio
     scale[:2, 2] = nadir * (1.0 - ratio)
