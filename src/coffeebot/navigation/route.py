@@ -300,12 +300,15 @@ class RoutePlanner:
         room across from or near the car: towards the nearer end of the hallway (the CS
         building's dead end, away from every office), the whole body ``DOORWAY_CLEARANCE_MM``
         clear of the car's and the room's doorways, so the robot leaving the room for the
-        car passes it. None when there is not a body's length left beyond it to turn round
+        car passes it. None when the room is farther from the car than a robot waits for
+        it, or when there is not a body's length left beyond it to turn round
         in (a turn on the spot is held while the front is within its stop distance of a
         wall)."""
         floor = self.plan.floor(goal.floor)
         elevator = floor.elevator
         if not goal.inside or elevator is None:
+            return None
+        if abs(goal.door.at_mm - elevator.at_mm) > self._elevator_hold_mm:
             return None
         length = floor.hallway.length_mm
         direction = 1.0 if length - elevator.at_mm < elevator.at_mm else -1.0
@@ -324,7 +327,7 @@ class RoutePlanner:
         it goes on to the loading spot nearby, where it then waits for it); and where it
         is then."""
         holding = self._holding_point(goal)
-        if holding is not None and abs(goal.door.at_mm - s) <= self._elevator_hold_mm:
+        if holding is not None:
             # On the hallway's axis, where the half turn back has room on both sides (in a
             # lane, 150 mm off it after the quarter turn out of the car, the body's corners
             # swung into the wall and the turn never ended); turned back at once, so a
