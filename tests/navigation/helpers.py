@@ -22,6 +22,7 @@ from coffeebot.messages import (
 )
 from coffeebot.modules.motion import MotionModule
 from coffeebot.navigation.control import wheel_speeds
+from coffeebot.navigation.route import RoutePlanner
 from coffeebot.perception.collision import CollisionMonitor
 from coffeebot.perception.walls import explainer
 from coffeebot.sim.world import World
@@ -31,6 +32,14 @@ from coffeebot.sim.world.world import WorldRobot
 ROOT = Path(__file__).resolve().parents[2]
 CONFIG: RobotConfig = load_robot_config(ROOT / "boards" / "coffeebot-v1.toml")
 PLAN: FloorPlan = load_floorplan(ROOT / "floorplans" / "cs-building.toml")
+PLANNER = RoutePlanner(
+    PLAN,
+    CONFIG.motion,
+    CONFIG.navigation,
+    CONFIG.geometry.width_mm,
+    body_length_mm=CONFIG.geometry.length_mm,
+)
+"""Routes of a single robot turning about its body's centre (no axle offset)."""
 DT = 0.05
 SETUP = robot_setup(CONFIG.tof)
 """The chips set up as the ToF poller sets them up."""

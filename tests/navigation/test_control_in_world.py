@@ -2,20 +2,12 @@
 
 from __future__ import annotations
 
-from helpers import CONFIG, PLAN, Run, drive
+from helpers import CONFIG, PLAN, PLANNER, Run, drive
 
 from coffeebot.messages import MotionState, MoveInstruction
-from coffeebot.navigation.route import RoutePlanner
 from coffeebot.sim.world import ObstacleSpec, Pose, RobotSpec, World
 
 FLOOR = PLAN.floor(2)
-PLANNER = RoutePlanner(
-    PLAN,
-    CONFIG.motion,
-    CONFIG.navigation,
-    CONFIG.geometry.width_mm,
-    body_length_mm=CONFIG.geometry.length_mm,
-)
 LANE = PLANNER.lane_mm(FLOOR, 1.0)  # travelling +x: right lane is negative d
 
 

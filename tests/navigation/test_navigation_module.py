@@ -6,7 +6,7 @@ import asyncio
 import contextlib
 
 import pytest
-from helpers import CONFIG, PLAN, estimate_at
+from helpers import CONFIG, PLAN, PLANNER, estimate_at
 
 from coffeebot.board import Board
 from coffeebot.daemon import Daemon
@@ -34,17 +34,8 @@ from coffeebot.messages import (
     StopCause,
 )
 from coffeebot.modules.navigation import NavigationModule
-from coffeebot.navigation.route import RoutePlanner
 from coffeebot.sim.crash import CrashSwitch
 from manual_clock import ManualClock
-
-PLANNER = RoutePlanner(
-    PLAN,
-    CONFIG.motion,
-    CONFIG.navigation,
-    CONFIG.geometry.width_mm,
-    body_length_mm=CONFIG.geometry.length_mm,
-)
 
 
 def pose_at(floor: int, x: float, y: float, heading: float = 0.0) -> CurrentState:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from helpers import CONFIG, PLAN, estimate_at, reported
+from helpers import CONFIG, PLAN, PLANNER, estimate_at, reported
 
 from coffeebot.messages import MoveInstruction, OtherRobot, Traffic
 from coffeebot.modules.motion import MotionModule
@@ -102,13 +102,6 @@ def lane_keeping(
     return module.controller
 
 
-PLANNER = RoutePlanner(
-    PLAN,
-    CONFIG.motion,
-    CONFIG.navigation,
-    CONFIG.geometry.width_mm,
-    body_length_mm=CONFIG.geometry.length_mm,
-)
 KEEP_RIGHT = PLANNER.lane_mm(FLOOR, 1.0)
 
 

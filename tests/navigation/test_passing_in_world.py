@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from helpers import CONFIG, DT, PLAN, SETUP, reported, true_pose
+from helpers import CONFIG, DT, PLAN, PLANNER, SETUP, reported, true_pose
 
 from coffeebot.messages import (
     MotionState,
@@ -19,7 +19,6 @@ from coffeebot.messages import (
 )
 from coffeebot.modules.motion import MotionModule
 from coffeebot.navigation.control import wheel_speeds
-from coffeebot.navigation.route import RoutePlanner
 from coffeebot.perception.collision import CollisionMonitor
 from coffeebot.perception.walls import explainer
 from coffeebot.sim.world import Pose, RobotSpec, World
@@ -27,13 +26,6 @@ from coffeebot.sim.world.tof import as_range_reading
 from coffeebot.sim.world.world import WorldRobot
 
 FLOOR = PLAN.floor(2)
-PLANNER = RoutePlanner(
-    PLAN,
-    CONFIG.motion,
-    CONFIG.navigation,
-    CONFIG.geometry.width_mm,
-    body_length_mm=CONFIG.geometry.length_mm,
-)
 
 
 @dataclass
