@@ -567,6 +567,72 @@ class Traffic(Message):
     robots: list[OtherRobot] = []
 
 
+# --- ceiling cameras (seed 003) ------------------------------------------------------------
+
+
+class CameraFix(Message):
+    """A ceiling camera's fix of this robot: a track matched to its odometry (seed 003, IV)
+    gives its pose in the building. The pose is for the moment of publishing (the match's
+    transform applied to the robot's latest odometry), so the state module fuses it as it
+    comes, without looking back."""
+
+    camera_id: str
+    floor: int
+    x_mm: float
+    y_mm: float
+    heading_deg: float
+    sigma_mm: float = Field(gt=0.0)
+    """1-sigma of the position, the same along both axes."""
+    sigma_heading_deg: float = Field(gt=0.0)
+    fit_error_mm: float = Field(ge=0.0)
+    """The similarity fit's mean error (the seed's eq 7) over the waypoints it used."""
+    points: int = Field(ge=1)
+    """How many waypoints the fit used."""
+    track_id: str
+
+
+class CameraObject(Message):
+    """Something a ceiling camera sees standing still that is not a robot (a cart, a box,
+    a person waiting): the seed's "map update" (VI.B), on the floor plan's frame."""
+
+    id: str
+    """Its camera's track id: the same object keeps it while the camera follows it."""
+    camera_id: str
+    floor: int
+    x_mm: float
+    y_mm: float
+    length_mm: float = Field(ge=0.0)
+    width_mm: float = Field(ge=0.0)
+    axis_deg: float
+    """Direction of the long side, in [0, 180)."""
+    standing_since_s: float
+    """Board-clock time it was first seen standing."""
+    seen_s: float
+    """Board-clock time it was last seen; the layer drops it ``expiry_s`` after this."""
+
+
+class CameraView(Message):
+    """One ceiling camera as the map draws it: where it looks and whether it works."""
+
+    camera_id: str
+    floor: int
+    corners_mm: list[tuple[float, float]]
+    """Its field of view on the floor, four corners in order."""
+    working: bool
+    problem: str | None = None
+    """Why it is not working, in plain words (no frames for 3 s, no stream)."""
+
+
+class CameraLayer(Message):
+    """The map's camera layer: every object the cameras saw standing, until it expires,
+    and every camera's view. Published whenever it changes and at least once a second."""
+
+    objects: list[CameraObject] = []
+    cameras: list[CameraView] = []
+    expiry_s: float = Field(gt=0.0)
+    """How long an object stays on the layer after it was last seen."""
+
+
 HEALTH = Topic("system/health", Health, Delivery.RELIABLE, queue_size=1024)
 RANGE_SCAN = Topic("tof/scan", RangeScan, Delivery.LATEST)
 UWB_FIX = Topic("uwb/fix", UwbFix, Delivery.LATEST)
@@ -591,6 +657,8 @@ LEASE_NEED = Topic("fleet/lease_need", LeaseNeed, Delivery.RELIABLE)
 LEASE_STATE = Topic("fleet/leases", LeaseState, Delivery.LATEST)
 FLEET = Topic("fleet/robots", FleetView, Delivery.LATEST)
 TRAFFIC = Topic("fleet/traffic", Traffic, Delivery.LATEST)
+CAMERA_FIX = Topic("cameras/fix", CameraFix, Delivery.RELIABLE)
+CAMERA_LAYER = Topic("cameras/layer", CameraLayer, Delivery.LATEST)
 
 ALL_TOPICS: tuple[Topic[Any], ...] = (
     HEALTH,
@@ -617,4 +685,6 @@ ALL_TOPICS: tuple[Topic[Any], ...] = (
     LEASE_STATE,
     FLEET,
     TRAFFIC,
+    CAMERA_FIX,
+    CAMERA_LAYER,
 )
