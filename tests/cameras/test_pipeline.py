@@ -321,3 +321,33 @@ def test_a_robot_driving_out_of_view_is_marked_cut_once_it_touches_the_border() 
     assert not any(cut for x, cut in cuts.items() if x < 3600.0)
     assert all(cut for x, cut in cuts.items() if x > 3750.0)
     assert any(x > 3750.0 for x in cuts), "still seen, in part, past the border"
+
+
+def test_a_robot_in_the_first_frames_leaves_no_ghost_when_it_drives_off() -> None:
+    scene = Scene()
+    pipeline = CameraPipeline(scene.camera, scene.floor_homography, SETTINGS)
+    clock = times(0.0)
+    docked = [robot(2300.0, 1700.0, axis_deg=0.0)]
+    for _ in range(SETTINGS.learn_frames):  # the robot stood at its dock while learning
+        pipeline.step(scene.frame(docked), next(clock))
+    # It drives off; a second later a cart is put down elsewhere, which must be seen.
+    assert pipeline.step(scene.frame(), next(clock)) == []
+    for _ in range(50):
+        assert pipeline.step(scene.frame(), next(clock)) == []
+    cart = [rectangle(1200.0, 1000.0, 900.0, 600.0, 0.0, 60.0)]
+    for _ in range(10):
+        detections = pipeline.step(scene.frame(cart), next(clock))
+    assert len(detections) == 1
+    assert math.hypot(detections[0].x_mm - 1200.0, detections[0].y_mm - 1000.0) < PX_MM
+
+
+def test_a_cart_absorbed_into_the_background_leaves_no_ghost_when_pushed_away() -> None:
+    scene = Scene()
+    pipeline, clock = learned_pipeline(scene)
+    cart = [rectangle(2300.0, 1700.0, 900.0, 600.0, 30.0, 60.0)]
+    slow_clock = times(next(clock), period_s=1.0)
+    for _ in range(900):  # a quarter of an hour: the cart is background now
+        pipeline.step(scene.frame(cart), next(slow_clock))
+    assert pipeline.step(scene.frame(cart), next(slow_clock)) == []
+    assert pipeline.step(scene.frame(), next(slow_clock)) == []
+    assert pipeline.step(scene.frame(), next(slow_clock)) == []

@@ -20,6 +20,7 @@ were floor in the previous frame, so the jump itself never shows as foreground.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -101,6 +102,15 @@ class PipelineSettings(BaseModel):
         gt=0,
         description="time constant of the foreground's running average (seed VI.B): "
         "something standing still this long reaches 63 %",
+    )
+    ghost_edge_ratio: float = Field(
+        0.5,
+        gt=0,
+        lt=1,
+        description="a blob whose outline is this much sharper in the background than in "
+        "the frame is a ghost (something that was there when the background was learned "
+        "and has gone: the robot at its dock at start-up, a cart pushed away): the frame's "
+        "floor texture shows weak edges there, the background the old object's strong ones",
     )
     max_step_s: float = Field(
         1.0,
@@ -190,6 +200,8 @@ class CameraPipeline:
             _rate(step_s, self.settings.foreground_time_constant_s),
         )
         contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+        if contours:
+            contours = self._drop_ghosts(contours, smoothed)
         found = (self._measure(contour, t_s) for contour in contours)
         return [d for d in found if d is not None]
 
@@ -239,6 +251,36 @@ class CameraPipeline:
         )
         self._floor_pixels = floor > 0
 
+    def _drop_ghosts(
+        self, contours: Sequence[np.ndarray], smoothed: np.ndarray
+    ) -> list[np.ndarray]:
+        """The blobs that are things, not ghosts; a ghost's pixels become background at
+        once (left to the slow objects' rate, a ghost would stand for minutes)."""
+        frame_edges = _edges(smoothed)
+        background_edges = _edges(self._background)
+        height, width = smoothed.shape
+        kept: list[np.ndarray] = []
+        for contour in contours:
+            outline = np.zeros((height, width), np.uint8)
+            cv2.drawContours(outline, [contour], -1, 255, thickness=3)
+            # The image's border is no edge of the object: it was cut there.
+            outline[[0, -1], :] = 0
+            outline[:, [0, -1]] = 0
+            on_outline = outline > 0
+            if not on_outline.any():
+                kept.append(contour)
+                continue
+            seen = float(frame_edges[on_outline].mean())
+            remembered = float(background_edges[on_outline].mean())
+            if seen >= self.settings.ghost_edge_ratio * remembered:
+                kept.append(contour)
+                continue
+            region = np.zeros((height, width), np.uint8)
+            cv2.drawContours(region, [contour], -1, 255, thickness=cv2.FILLED)
+            absorbed = cv2.dilate(region, self._guard) > 0
+            self._background[absorbed] = smoothed[absorbed]
+        return kept
+
     def _measure(self, contour: np.ndarray, t_s: float) -> Detection | None:
         """The blob's area, centroid and enclosing rectangle, measured on the plane itself:
         exact for any homography, and the axis comes out in the floor frame."""
@@ -274,6 +316,13 @@ class CameraPipeline:
             camera_id=self.camera.id,
             cut=cut,
         )
+
+
+def _edges(image: np.ndarray) -> np.ndarray:
+    """Gradient magnitude per pixel (Sobel)."""
+    dx = cv2.Sobel(image, cv2.CV_32F, 1, 0, ksize=3)
+    dy = cv2.Sobel(image, cv2.CV_32F, 0, 1, ksize=3)
+    return cv2.magnitude(dx, dy)
 
 
 def _disc(size_px: int) -> np.ndarray:
