@@ -11,6 +11,7 @@ from coffeebot.config import RobotConfig
 from coffeebot.floorplan import FloorPlan
 from coffeebot.messages import (
     ANGLE,
+    CAMERA_FIX,
     CURRENT_STATE,
     DELIVERY_STATUS,
     DOOR,
@@ -35,6 +36,7 @@ class StateModule(Module):
     inputs = (
         ODOMETRY,
         UWB_FIX,
+        CAMERA_FIX,
         RANGE_SCAN,
         ANGLE,
         DOOR,
@@ -82,6 +84,7 @@ class StateModule(Module):
         handlers: list[tuple[Topic[Any], Callable[[Any, float], object]]] = [
             (ODOMETRY, e.on_odometry),
             (UWB_FIX, e.on_uwb),
+            (CAMERA_FIX, e.on_camera_fix),
             (RANGE_SCAN, e.on_scan),
             (ANGLE, e.on_angle),
             (DOOR, e.on_door),

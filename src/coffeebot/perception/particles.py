@@ -8,8 +8,9 @@ Each particle is a pose (x mm, y mm, heading rad) on the current floor:
   telemetry message;
 * **measurements** as likelihoods: the ToF scan against the floor's likelihood field
   (:mod:`~coffeebot.perception.range_model`, after ``update_min_mm``/``update_min_deg`` of
-  motion, as nav2 does), UWB fixes (a Gaussian with an outlier floor), and optionally the
-  angle and door modules' outputs;
+  motion, as nav2 does), UWB fixes (a Gaussian with an outlier floor), a ceiling camera's
+  pose fixes (a Gaussian in position and heading; one far from the cloud re-seeds it), and
+  optionally the angle and door modules' outputs;
 * **resampling**: low variance, at a KLD-sampling count, when the effective sample size
   drops or when recovery asks for fresh particles;
 * **recovery** (augmented MCL): when the scans' or the fixes' fit falls below its long-term
@@ -358,6 +359,47 @@ class ParticlePoseFusion:
         measured = (x * math.cos(u) + y * math.sin(u)) + offset_mm
         along = self.particles[:, 0] * math.cos(u) + self.particles[:, 1] * math.sin(u)
         return self._update_gaussian(measured - along, sigma_mm)
+
+    def update_pose_fix(
+        self, x_mm: float, y_mm: float, heading_deg: float, sigma_mm: float, sigma_deg: float
+    ) -> bool:
+        """A whole pose measured from outside (a ceiling camera's fix).
+
+        It seeds the particles when there are none, and re-seeds them when it is more than
+        ``camera_reseed_sigma`` sigmas (the fix's and the cloud's together) from the cloud:
+        then the cloud is lost, and a weight update would only pick its particle nearest the
+        fix. Otherwise it weighs the particles by a Gaussian in position and heading, with no
+        outlier floor (the distance rule already judged the fix; a floor would let a fix much
+        tighter than the cloud barely move it). The recovery monitors are not fed: such a fix
+        fits the cloud poorly without the cloud being lost.
+        """
+        values = (x_mm, y_mm, heading_deg, sigma_mm, sigma_deg)
+        if not (all(math.isfinite(v) for v in values) and sigma_mm > 0 and sigma_deg > 0):
+            return False
+        if not self.initialised or self._far_from_cloud(*values):
+            self.reset(*values)
+            return True
+        self._apply_motion()
+        d2 = (self.particles[:, 0] - x_mm) ** 2 + (self.particles[:, 1] - y_mm) ** 2
+        turn = wrap(math.radians(heading_deg) - self.particles[:, 2])
+        self._weigh(-0.5 * (d2 / sigma_mm**2 + (turn / math.radians(sigma_deg)) ** 2))
+        return True
+
+    def _far_from_cloud(
+        self, x_mm: float, y_mm: float, heading_deg: float, sigma_mm: float, sigma_deg: float
+    ) -> bool:
+        """Whether a pose is beyond ``camera_reseed_sigma`` of the cloud: the position by its
+        Mahalanobis distance (a cloud long along a hallway reaches further along it), the
+        heading by its own."""
+        limit = self.state_cfg.camera_reseed_sigma
+        x, y, heading = self.pose()
+        cov = self.covariance()
+        offset = np.array([x_mm - x, y_mm - y])
+        combined = cov[:2, :2] + np.eye(2) * sigma_mm**2
+        if float(offset @ np.linalg.solve(combined, offset)) > limit**2:
+            return True
+        turn = math.remainder(heading_deg - heading, 360.0)
+        return turn**2 > limit**2 * (cov[2, 2] + sigma_deg**2)
 
     # --- resampling -----------------------------------------------------------------------
 

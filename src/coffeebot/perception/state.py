@@ -15,6 +15,7 @@ from coffeebot.config import MotorConfig, RobotConfig, StateConfig
 from coffeebot.floorplan import FloorPlan
 from coffeebot.messages import (
     AngleEstimate,
+    CameraFix,
     CurrentState,
     DeliveryUpdate,
     DoorEvent,
@@ -64,6 +65,7 @@ class StateEstimator:
         self._fuse_angles = not particles or cfg.particles.use_wall_angle
         self._fuse_doors = not particles or cfg.particles.use_doors
         self._anchor_floor = {a.id: f.level for f in plan.floors for a in f.anchors}
+        self._levels = {f.level for f in plan.floors}
         self._recent: deque[OdometryStep] = deque()
         self.angle_from_line_deg: float | None = None
         self.move_instruction: MoveInstruction | None = None
@@ -104,6 +106,36 @@ class StateEstimator:
         sigma = self.cfg.uwb_sigma_mm * max(1.0, 50.0 / fix.quality)
         self.stamps["uwb"] = now
         return self.fusion.update_position(fix.x_mm, fix.y_mm, sigma)
+
+    def on_camera_fix(self, fix: CameraFix, now: float) -> bool:
+        """A ceiling camera's pose of the robot, with its floor, for now.
+
+        Its floor is believed only to place a fusion that has no pose yet: once tracking, the
+        floor follows the elevator rides, and a fix for another floor is a wrong match, not
+        a ride. Without a pose the fix places the robot (the particle filter's first
+        particles); with one it is fused: the Kalman filter's gate may reject it, the
+        particle filter re-seeds around a fix far from its cloud.
+        """
+        values = (fix.x_mm, fix.y_mm, fix.heading_deg, fix.sigma_mm, fix.sigma_heading_deg)
+        if fix.floor not in self._levels or not all(math.isfinite(v) for v in values):
+            return False
+        if not self.fusion.initialised:
+            self._set_floor(fix.floor)
+            self.fusion.reset(*values)
+            used = True
+        elif fix.floor != self.floor:
+            return False
+        elif isinstance(self.fusion, ParticlePoseFusion):
+            used = self.fusion.update_pose_fix(*values)
+        else:
+            # Position first: a position the gate rejects takes its heading with it, since
+            # both come from the same match.
+            used = self.fusion.update_position(fix.x_mm, fix.y_mm, fix.sigma_mm)
+            if used:
+                self.fusion.update_heading(fix.heading_deg, fix.sigma_heading_deg)
+        if used:
+            self.stamps["camera"] = now
+        return used
 
     def on_scan(self, scan: RangeScan, now: float) -> bool:
         used = self.fusion.update_ranges(scan)
