@@ -5,6 +5,7 @@ inspector frame: a list of plain shapes in floor-plan millimetres. Shapes come f
 the robot poses (from a pose source the daemon provides) and one layer per board topic, keyed
 by the topic's name in :data:`LAYERS`. A topic that is not declared on the board, or has not
 published yet, simply draws nothing, so adding a layer is one function and one entry there.
+A robot without ceiling cameras, say, has no ``cameras/layer`` and its map is unchanged.
 
 Sensor cones (:mod:`coffeebot.sensor_view`) are drawn from each sensor's configured mount,
 yaw and field of view, so a change of layout in the robot description shows as it is.
@@ -23,6 +24,7 @@ from coffeebot.board import BoardError, BoardView, Envelope
 from coffeebot.config import TofSensorConfig
 from coffeebot.floorplan import FloorPlan
 from coffeebot.messages import (
+    CAMERA_LAYER,
     CURRENT_STATE,
     ELEVATOR_REQUEST,
     ELEVATOR_STATE,
@@ -31,6 +33,9 @@ from coffeebot.messages import (
     PARTICLES,
     RANGE_SCAN,
     ROUTE,
+    CameraLayer,
+    CameraObject,
+    CameraView,
     CurrentState,
     MotionStatus,
     ParticleCloud,
@@ -107,8 +112,39 @@ class GoalShape(BaseModel):
     y_mm: float
 
 
+class CameraFieldShape(BaseModel):
+    """A ceiling camera's field of view on the floor: what the cameras can vouch for, and
+    (drawn in the warning colour) where a camera that stopped working leaves a blind spot."""
+
+    kind: Literal["camera_field"] = "camera_field"
+    camera_id: str
+    working: bool
+    corners: list[tuple[float, float]]
+    text: str
+    """The camera's id and, when it is not working, why: the outline's hover text."""
+
+
+class CameraObjectShape(BaseModel):
+    """Something a ceiling camera sees standing still: its footprint's four corners, so the
+    browser paints a polygon as it does a cone."""
+
+    kind: Literal["camera_object"] = "camera_object"
+    id: str
+    camera_id: str
+    corners: list[tuple[float, float]]
+    text: str
+    """Which camera sees it standing and for how long: the footprint's hover text."""
+
+
 Shape = Annotated[
-    RobotShape | ConeShape | EllipseShape | CloudShape | PathShape | GoalShape,
+    RobotShape
+    | ConeShape
+    | EllipseShape
+    | CloudShape
+    | PathShape
+    | GoalShape
+    | CameraFieldShape
+    | CameraObjectShape,
     Field(discriminator="kind"),
 ]
 
@@ -220,9 +256,61 @@ def detour_path(envelope: Envelope[Any], ctx: MapContext) -> list[PathShape]:
     return [PathShape(role="detour", points=points)]
 
 
+def camera_layer(
+    envelope: Envelope[Any], ctx: MapContext
+) -> list[CameraFieldShape | CameraObjectShape]:
+    """The ceiling cameras' fields on the shown floor, then what they see standing there
+    (over the fields, so a footprint is never hidden by an outline)."""
+    layer: CameraLayer = envelope.msg
+    floor, now = ctx.pose.floor, ctx.board.clock.now()
+    shapes: list[CameraFieldShape | CameraObjectShape] = [
+        CameraFieldShape(
+            camera_id=camera.camera_id,
+            working=camera.working,
+            corners=camera.corners_mm,
+            text=_camera_text(camera),
+        )
+        for camera in layer.cameras
+        if camera.floor == floor
+    ]
+    shapes.extend(
+        CameraObjectShape(
+            id=thing.id,
+            camera_id=thing.camera_id,
+            corners=footprint(thing),
+            text=f"seen standing by camera {thing.camera_id} "
+            f"for {max(0.0, now - thing.standing_since_s):.0f} s",
+        )
+        for thing in layer.objects
+        if thing.floor == floor
+    )
+    return shapes
+
+
+def _camera_text(camera: CameraView) -> str:
+    """The camera's id, and for one not working, that it is not and why."""
+    if camera.working:
+        return f"camera {camera.camera_id}"
+    why = f" ({camera.problem})" if camera.problem else ""
+    return f"camera {camera.camera_id}: not working{why}"
+
+
+def footprint(thing: CameraObject) -> list[tuple[float, float]]:
+    """The rectangle a camera measured, corner after corner: ``length_mm`` along
+    ``axis_deg`` (CCW from +x), ``width_mm`` across, about the centre."""
+    a = math.radians(thing.axis_deg)
+    lx, ly = 0.5 * thing.length_mm * math.cos(a), 0.5 * thing.length_mm * math.sin(a)
+    wx, wy = -0.5 * thing.width_mm * math.sin(a), 0.5 * thing.width_mm * math.cos(a)
+    return [
+        (thing.x_mm + i * lx + j * wx, thing.y_mm + i * ly + j * wy)
+        for i, j in ((1, 1), (-1, 1), (-1, -1), (1, -1))
+    ]
+
+
 Layer = Callable[[Envelope[Any], MapContext], Sequence[Shape]]
 
 LAYERS: dict[str, Layer] = {
+    CAMERA_LAYER.name: camera_layer,
     ROUTE.name: planned_route,
     MOTION_STATUS.name: detour_path,
     PARTICLES.name: particle_cloud,

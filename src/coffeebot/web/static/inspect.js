@@ -162,6 +162,13 @@
   }
 
   const rad = (deg) => (deg * Math.PI) / 180;
+  const pointList = (pts) => pts.map(([x, y]) => `${x.toFixed(0)},${y.toFixed(0)}`).join(" ");
+
+  // A polygon with its words shown on hover: a sensor's cone, a camera's field, what it sees.
+  function titled(g, cls, points, text, data) {
+    const p = node("polygon", { class: cls, points: pointList(points), ...data }, g);
+    node("title", {}, p).textContent = text;
+  }
 
   const draw = {
     robot(s, g) {
@@ -184,11 +191,7 @@
         const a = rad(s.heading_deg - s.half_fov_deg + (2 * s.half_fov_deg * i) / steps);
         pts.push([s.x_mm + s.range_mm * Math.cos(a), s.y_mm + s.range_mm * Math.sin(a)]);
       }
-      const c = node("polygon", {
-        class: `cone ${s.reach} ${s.status}`, "data-sensor": s.sensor,
-        points: pts.map(([x, y]) => `${x.toFixed(0)},${y.toFixed(0)}`).join(" "),
-      }, g);
-      node("title", {}, c).textContent = s.text;
+      titled(g, `cone ${s.reach} ${s.status}`, pts, s.text, { "data-sensor": s.sensor });
       if (s.reach === "hit") {
         const a = rad(s.heading_deg);
         node("circle", { class: "hit-point", cx: s.x_mm + s.range_mm * Math.cos(a), cy: s.y_mm + s.range_mm * Math.sin(a), r: 45 }, g);
@@ -201,10 +204,7 @@
       }, g);
     },
     path(s, g) {
-      node("polyline", {
-        class: `path ${s.role}`,
-        points: s.points.map(([x, y]) => `${x.toFixed(0)},${y.toFixed(0)}`).join(" "),
-      }, g);
+      node("polyline", { class: `path ${s.role}`, points: pointList(s.points) }, g);
     },
     goal(s, g) {
       node("circle", { class: "goal", cx: s.x_mm, cy: s.y_mm, r: 220 }, g);
@@ -213,6 +213,12 @@
     cloud(s, g) {
       const c = node("g", { class: "particles" }, g);
       for (const [x, y] of s.points) node("circle", { cx: x, cy: y, r: 35 }, c);
+    },
+    camera_field(s, g) {
+      titled(g, `camera-field${s.working ? "" : " down"}`, s.corners, s.text, { "data-camera": s.camera_id });
+    },
+    camera_object(s, g) {
+      titled(g, "camera-object", s.corners, s.text, { "data-object": s.id, "data-camera": s.camera_id });
     },
   };
 
@@ -228,6 +234,7 @@
     overlay.replaceChildren(...g.childNodes);
     fitView(svg, shapes);
     el("map-caption").textContent = map.caption;
+    el("camera-legend").hidden = !shapes.some((s) => s.kind.startsWith("camera_"));
     showReadings(shapes.filter((s) => s.kind === "cone"));
   }
 
