@@ -21,6 +21,7 @@ import numpy as np
 
 from coffeebot.messages import OtherRobot
 from coffeebot.navigation.passing import MAX_AGE_S
+from coffeebot.rectangles import corners, sides
 
 
 def standing_outlines(
@@ -33,17 +34,11 @@ def standing_outlines(
     """The body outline (4, 4: the sides as x0, y0, x1, y1) of each other robot standing on
     ``floor_level``, reported within ``MAX_AGE_S`` (``age_s``: how old the traffic message
     is, added to each robot's own age)."""
-    outlines = []
-    half_l, half_w = length_mm / 2.0, width_mm / 2.0
-    corners = np.array([[half_l, half_w], [half_l, -half_w], [-half_l, -half_w], [-half_l, half_w]])
-    for other in others:
-        if other.floor != floor_level or other.moving or other.age_s + age_s > MAX_AGE_S:
-            continue
-        h = math.radians(other.heading_deg)
-        rotation = np.array([[math.cos(h), -math.sin(h)], [math.sin(h), math.cos(h)]])
-        points = corners @ rotation.T + (other.x_mm, other.y_mm)
-        outlines.append(np.hstack([points, np.roll(points, -1, axis=0)]))
-    return outlines
+    return [
+        sides(corners(other.x_mm, other.y_mm, length_mm, width_mm, other.heading_deg))
+        for other in others
+        if other.floor == floor_level and not other.moving and other.age_s + age_s <= MAX_AGE_S
+    ]
 
 
 def outline_points(outline: np.ndarray, spacing_mm: float) -> tuple[np.ndarray, np.ndarray]:

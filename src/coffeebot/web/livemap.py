@@ -42,6 +42,7 @@ from coffeebot.messages import (
     PlannedRoute,
     RangeScan,
 )
+from coffeebot.rectangles import corners
 from coffeebot.sensor_view import ConeShape, sensor_cones
 
 ELLIPSE_SCALE = math.sqrt(5.991)
@@ -296,15 +297,9 @@ def _camera_text(camera: CameraView) -> str:
 
 
 def footprint(thing: CameraObject) -> list[tuple[float, float]]:
-    """The rectangle a camera measured, corner after corner: ``length_mm`` along
-    ``axis_deg`` (CCW from +x), ``width_mm`` across, about the centre."""
-    a = math.radians(thing.axis_deg)
-    lx, ly = 0.5 * thing.length_mm * math.cos(a), 0.5 * thing.length_mm * math.sin(a)
-    wx, wy = -0.5 * thing.width_mm * math.sin(a), 0.5 * thing.width_mm * math.cos(a)
-    return [
-        (thing.x_mm + i * lx + j * wx, thing.y_mm + i * ly + j * wy)
-        for i, j in ((1, 1), (-1, 1), (-1, -1), (1, -1))
-    ]
+    """The rectangle a camera measured, corner after corner."""
+    points = corners(thing.x_mm, thing.y_mm, thing.length_mm, thing.width_mm, thing.axis_deg)
+    return [(float(x), float(y)) for x, y in points]
 
 
 Layer = Callable[[Envelope[Any], MapContext], Sequence[Shape]]
