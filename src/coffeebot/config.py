@@ -880,6 +880,22 @@ class NavigationConfig(Section):
         "the base room's door, clear of a robot driving out of it (out of the car across "
         "from it: this far from the car, at the holding point)",
     )
+    camera_stop_short_mm: float = Field(
+        1500.0,
+        ge=0,
+        le=LENGTH_MM,
+        description="something a ceiling camera sees blocking the hallway ahead is waited "
+        "for with the body's front this far before it (navigation/camera_blocks.py)",
+    )
+    camera_stale_s: float = Field(
+        3.0,
+        gt=0,
+        le=60,
+        description="a camera layer older than this (it comes at least once a second) is no "
+        "camera information, not 'still blocked': navigation stops waiting for what it "
+        "showed and motion's costmap drops its marks; the robot's own sensors still stop "
+        "it for whatever is there",
+    )
     elevator: ElevatorConfig = ElevatorConfig()
 
 

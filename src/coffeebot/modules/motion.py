@@ -15,6 +15,10 @@ frozen half-way, and a turn is all it gets: the forward speed stays zero. On shu
 sends a stop before anything is cancelled; if it crashes it sends a stop on the way out, the
 motor driver replaces a silent motion module's command by a stop, and the controller's own
 watchdog stops the wheels if everything above it is gone.
+
+What the ceiling cameras see standing (``cameras/layer``) goes into the costmap as a layer of
+its own, so the detour picks its side before the sensors see the thing; it only ever adds
+obstacles to plan round, and the safety gate knows nothing of it.
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ from coffeebot.board import Envelope
 from coffeebot.config import RobotConfig
 from coffeebot.floorplan import FloorPlan
 from coffeebot.messages import (
+    CAMERA_LAYER,
     COLLISION,
     CURRENT_STATE,
     ESTOP,
@@ -49,6 +54,7 @@ from coffeebot.messages import (
     StopCause,
 )
 from coffeebot.modules.base import Module, ModuleBoard, ModuleContext
+from coffeebot.navigation.camera_blocks import camera_marks
 from coffeebot.navigation.control import wheel_speeds
 from coffeebot.navigation.costmap import Footprint, LocalCostmap
 from coffeebot.navigation.motion import MotionController
@@ -123,6 +129,7 @@ class MotionModule(Module):
         RANGE_SCAN,
         ODOMETRY,
         TRAFFIC,
+        CAMERA_LAYER,
     )
     outputs = (MOTOR_COMMAND, MOTION_STATUS)
     shutdown_order = 0  # with the motor driver: first to stop
@@ -206,6 +213,16 @@ class MotionModule(Module):
         with ctx.board.subscribe(TRAFFIC) as traffic:
             async for envelope in traffic:
                 self.controller.note_traffic(envelope.msg, ctx.clock.now())
+
+    async def _watch_cameras(self, ctx: ModuleContext) -> None:
+        """What the ceiling cameras see standing, into the costmap's camera layer until the
+        layer goes stale (a robot without cameras gets none)."""
+        stale_s = self.config.navigation.camera_stale_s
+        spacing = self.cfg.costmap_resolution_mm / 2
+        with ctx.board.subscribe(CAMERA_LAYER) as layers:
+            async for envelope in layers:
+                marks = camera_marks(envelope.msg.objects, spacing)
+                self.costmap.mark_camera(marks, envelope.stamp + stale_s)
 
     def gate(self, ctx: ModuleContext) -> Gate:
         """The safety gate from the freshest state on the board: made once per command."""
@@ -370,6 +387,7 @@ class MotionModule(Module):
                 group.create_task(self._watch_health(ctx))
                 group.create_task(self._map(ctx))
                 group.create_task(self._watch_traffic(ctx))
+                group.create_task(self._watch_cameras(ctx))
                 group.create_task(self._loop(ctx))
         finally:
             # A crash or a cancel: the last word to the motors is "stop".

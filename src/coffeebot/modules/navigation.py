@@ -11,6 +11,10 @@ The elevator procedure talks to whatever serves ``elevator/request`` (the simula
 elevator, or a building interface); when it does not answer within the timeout the call is
 repeated, then an operator is asked to confirm the step on the operator page
 (``elevator_confirm``), and when nobody does the delivery fails with the reason.
+
+Along the hallway it also acts on what the ceiling cameras see (``cameras/layer``): something
+standing on the rest of the leg with no room to pass holds the robot short of it, the
+customer told why, until it is gone (:mod:`coffeebot.navigation.camera_blocks`).
 """
 
 from __future__ import annotations
@@ -25,6 +29,7 @@ from coffeebot.config import RobotConfig
 from coffeebot.errors import ConfigError, DeliveryError
 from coffeebot.floorplan import FloorPlan, ParkingSpot
 from coffeebot.messages import (
+    CAMERA_LAYER,
     CURRENT_STATE,
     DELIVERY_STATUS,
     ELEVATOR_REQUEST,
@@ -52,6 +57,7 @@ from coffeebot.messages import (
     StopCause,
 )
 from coffeebot.modules.base import Module, ModuleContext
+from coffeebot.navigation.camera_blocks import Block, BlockRule, Leg, fresh_objects, leg_ends
 from coffeebot.navigation.lifecycle import MOVING, DeliveryLifecycle
 from coffeebot.navigation.path import route_legs
 from coffeebot.navigation.route import ElevatorRide, Lease, Move, Route, RoutePlanner, Step
@@ -96,6 +102,7 @@ class NavigationModule(Module):
         MOTION_STATUS,
         ELEVATOR_STATE,
         LEASE_STATE,
+        CAMERA_LAYER,
     )
     outputs = (MOVE_INSTRUCTION, DELIVERY_STATUS, ELEVATOR_REQUEST, ROUTE, LEASE_NEED)
 
@@ -112,6 +119,7 @@ class NavigationModule(Module):
             pivot_mm=config.motor.axle_x_mm,
             parking=parking_spot(config, plan) if self.fleet else None,
         )
+        self.blocks = BlockRule.from_config(config)
         self._ids = itertools.count(1)
         self._handled: set[str] = set()
         self._life: DeliveryLifecycle | None = None
@@ -173,8 +181,18 @@ class NavigationModule(Module):
 
     # --- motion ----------------------------------------------------------------------------
 
-    async def _move(self, ctx: ModuleContext, move: Move) -> None:
-        """Send one instruction and wait until motion reports it done."""
+    async def _move(self, ctx: ModuleContext, move: Move, leg_end_s: float | None = None) -> None:
+        """Send one instruction and wait until motion reports it done; on a hallway leg
+        ending at ``leg_end_s`` (:func:`~coffeebot.navigation.camera_blocks.leg_ends`), hold
+        short of whatever the ceiling cameras see blocking the rest of it first."""
+        leg = self._leg(ctx, move.instruction, leg_end_s)
+        while (block := await self._until_done(ctx, move, leg)) is not None and leg is not None:
+            if not await self._hold_short(ctx, move, leg, block):
+                return
+
+    async def _until_done(self, ctx: ModuleContext, move: Move, leg: Leg | None) -> Block | None:
+        """Send the instruction and wait until motion reports it done (None), or until the
+        cameras see something blocking ``leg`` ahead (that)."""
         ident = self._instruct(ctx, move.instruction)
         reported_blocked = False
         heard = progressed = ctx.clock.now()
@@ -182,6 +200,9 @@ class NavigationModule(Module):
         while True:
             with contextlib.suppress(TimeoutError):
                 await ctx.board.next(MOTION_STATUS, timeout=1.0)
+            block = None if leg is None else self._camera_block(ctx, leg)
+            if block is not None:
+                return block
             latest = ctx.board.latest(MOTION_STATUS)
             if latest is None or latest.msg.instruction_id != ident:
                 if ctx.clock.now() - heard > self.nav.blocked_give_up_s:
@@ -194,7 +215,7 @@ class NavigationModule(Module):
             if status.instruction_id == ident and status.state is MotionState.DONE:
                 if reported_blocked:
                     self._progress(ctx, f"on the way again: {move.instruction.detail}")
-                return
+                return None
             if status.remaining_mm is not None and status.remaining_mm < nearest - PROGRESS_MM:
                 nearest, progressed = status.remaining_mm, heard
             held = status.since_s if status.state in NOT_MOVING else 0.0
@@ -220,6 +241,76 @@ class NavigationModule(Module):
                 reported_blocked = False
                 self._progress(ctx, f"on the way again: {move.instruction.detail}")
 
+    # --- what the ceiling cameras see -------------------------------------------------------
+
+    def _leg(self, ctx: ModuleContext, ins: MoveInstruction, end_s: float | None) -> Leg | None:
+        """The hallway leg a lane move drives, from where the robot stands now; None for any
+        other move, or when the robot is not on its floor."""
+        pose = self._pose(ctx)
+        target = ins.target_s_mm
+        if end_s is None or target is None or pose is None or pose.floor != ins.floor:
+            return None
+        floor = self.planner.plan.floor(pose.floor)
+        s = floor.to_hallway(pose.x_mm, pose.y_mm)[0]
+        return Leg(floor, 1.0 if target >= s else -1.0, target, end_s)
+
+    def _camera_block(self, ctx: ModuleContext, leg: Leg) -> Block | None:
+        """The nearest thing the camera layer shows blocking the rest of ``leg``, if any."""
+        pose = self._pose(ctx)
+        if pose is None or pose.floor != leg.floor.level:
+            return None
+        layer = ctx.board.latest(CAMERA_LAYER)
+        objects = fresh_objects(
+            None if layer is None else layer.msg,
+            ctx.board.age(CAMERA_LAYER),
+            self.nav.camera_stale_s,
+        )
+        s = leg.floor.to_hallway(pose.x_mm, pose.y_mm)[0]
+        return self.blocks.blocking(leg, s, abs(pose.speed_mm_s), objects)
+
+    async def _hold_short(self, ctx: ModuleContext, move: Move, leg: Leg, block: Block) -> bool:
+        """Hold short of ``block`` until the camera layer no longer shows the way blocked
+        (then whether ``move`` still has way to go), telling the customer why. The route has
+        no other way to take (one hallway per floor), so this waits, up to
+        ``blocked_give_up_s`` (``on_blocked = "return"``: not at all)."""
+        ins = move.instruction
+        ctx.log.info(
+            "holding short of %s at s=%.0f: camera object %s, %.0f mm free beside it",
+            block.what,
+            block.stop_s_mm,
+            block.object_id,
+            block.free_mm,
+        )
+        self._progress(ctx, block.waiting_detail, DeliveryProblem.BLOCKED)
+        if self.nav.on_blocked == "return":
+            raise DeliveryAborted(f"blocked: {block.what}", DeliveryProblem.BLOCKED)
+        since = ctx.clock.now()
+        held_at: float | None = None
+        current: Block | None = block
+        while current is not None:
+            # Held further back when something nearer blocks; never moved on while blocked.
+            if held_at is None or (held_at - current.stop_s_mm) * leg.direction > (
+                self.config.motion.stop_tolerance_mm
+            ):
+                held_at = current.stop_s_mm
+                hold = {"target_s_mm": held_at, "stop": True, "target_room": None}
+                detail = f"holding short of {current.what}"
+                self._instruct(ctx, ins.model_copy(update={**hold, "detail": detail}))
+            waited = ctx.clock.now() - since
+            if waited >= self.nav.blocked_give_up_s:
+                raise DeliveryAborted(
+                    f"blocked for {waited:.0f} s: {current.what}", DeliveryProblem.BLOCKED
+                )
+            await ctx.clock.sleep(POLL_S)
+            current = self._camera_block(ctx, leg)
+        ctx.log.info("the camera layer shows the way clear: going on")
+        self._progress(ctx, f"on the way again: {ins.detail}")
+        pose = self._pose(ctx)
+        if pose is None or pose.floor != leg.floor.level:
+            return True
+        s = leg.floor.to_hallway(pose.x_mm, pose.y_mm)[0]
+        return (leg.target_s_mm - s) * leg.direction > self.config.motion.stop_tolerance_mm
+
     def _progress(
         self, ctx: ModuleContext, detail: str, problem: DeliveryProblem | None = None
     ) -> None:
@@ -228,13 +319,13 @@ class NavigationModule(Module):
             self._report(ctx, life.progress(detail, problem))
 
     async def _drive(self, ctx: ModuleContext, steps: Sequence[Step]) -> None:
-        for step in steps:
+        for step, leg_end_s in zip(steps, leg_ends(steps), strict=True):
             if isinstance(step, ElevatorRide):
                 await self._ride(ctx, step)
             elif isinstance(step, Lease):
                 await self._lease(ctx, step)
             else:
-                await self._move(ctx, step)
+                await self._move(ctx, step, leg_end_s)
 
     # --- shared places (a fleet's) ---------------------------------------------------------
 

@@ -1,4 +1,4 @@
-"""A local costmap from the ToF scans, in two layers (seed 003; Lu et al.'s layered costmaps).
+"""A local costmap from the ToF scans, in layers (seed 003; Lu et al.'s layered costmaps).
 
 *Static layer*: the floor plan's walls, known in advance. *Obstacle layer*: a rolling grid
 around the robot, marked and cleared from the time-of-flight readings the way sonar costmaps
@@ -35,6 +35,12 @@ Each cell also remembers since when it has been continuously occupied: an obstac
 nearest cells have stood for ``static_confirm_s`` is static; a walking person keeps producing
 fresh cells (approaching) or clears the old ones (leaving), so they are never "static" and the
 robot waits for them instead of steering around them.
+
+*Camera layer*: the outlines of what the ceiling cameras see standing in the hallway
+(:mod:`coffeebot.navigation.camera_blocks`), as points that count as occupied cells, standing
+since the camera first saw them stand. The whole layer is replaced by each camera layer
+message (what left the cameras' layer leaves the costmap) and dropped once it is stale; the
+readings neither mark nor clear it, so it only ever adds to what the sensors see.
 """
 
 from __future__ import annotations
@@ -59,6 +65,10 @@ MAX_MARK_MM = 1500.0
 Rays = tuple[list[int], np.ndarray, np.ndarray, np.ndarray]
 """The sensors asked whether something explains their reading: ids, origins (n, 2), the rays
 of each widened cone (n, r), and how far along them it may lie (n,)."""
+
+CameraMarks = dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]]
+"""The camera layer, per floor level: points (x, y) on the outlines of what the ceiling
+cameras see standing, and since when each has stood (board clock)."""
 
 EXPLAIN_RAYS = 15
 """Rays sampled across the widened cone when asking whether the plan's walls explain a
@@ -132,6 +142,8 @@ class LocalCostmap:
         self.since_t = np.full((self.n, self.n), math.inf)
         self.pole_t = np.full((self.n, self.n), -math.inf)
         """When a pole's return last marked each cell."""
+        self._camera: CameraMarks = {}
+        self._camera_until = -math.inf
 
     # --- grid ------------------------------------------------------------------------------
 
@@ -343,6 +355,23 @@ class LocalCostmap:
                 run = []
         return frozenset(keep)
 
+    def mark_camera(self, marks: CameraMarks, until_s: float) -> None:
+        """Replace the camera layer with ``marks``, which hold until ``until_s`` unless
+        replaced before: a layer that stops coming is no information."""
+        self._camera, self._camera_until = marks, until_s
+
+    def _camera_points(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The camera layer's points on this floor within ``lookahead_mm`` of the window (the
+        furthest the detour asks about), and since when each has stood."""
+        marks = None if self.floor is None else self._camera.get(self.floor.level)
+        if marks is None or now > self._camera_until:
+            return np.empty(0), np.empty(0), np.empty(0)
+        xs, ys, since = marks
+        lo_x, lo_y = self.origin[0] - self.cfg.lookahead_mm, self.origin[1] - self.cfg.lookahead_mm
+        span = self.n * self.res + 2 * self.cfg.lookahead_mm
+        near = (xs >= lo_x) & (xs <= lo_x + span) & (ys >= lo_y) & (ys <= lo_y + span)
+        return xs[near], ys[near], since[near]
+
     def _occupied_at(self, i: np.ndarray, j: np.ndarray, now: float) -> np.ndarray:
         hit = self.hit_t[i, j]
         return (hit > self.clear_t[i, j]) & (now - hit <= self.cfg.obstacle_memory_s)
@@ -353,18 +382,22 @@ class LocalCostmap:
         return i, j
 
     def obstacles(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Centres (x, y) of occupied cells and since when each has been occupied."""
+        """Centres (x, y) of occupied cells, then the camera layer's points, and since when
+        each has been occupied."""
         i, j = self._occupied(now)
-        xs = self.origin[0] + (i + 0.5) * self.res
-        ys = self.origin[1] + (j + 0.5) * self.res
-        return xs, ys, self.since_t[i, j]
+        camera_x, camera_y, camera_since = self._camera_points(now)
+        xs = np.concatenate([self.origin[0] + (i + 0.5) * self.res, camera_x])
+        ys = np.concatenate([self.origin[1] + (j + 0.5) * self.res, camera_y])
+        return xs, ys, np.concatenate([self.since_t[i, j], camera_since])
 
     def margins(self, now: float) -> np.ndarray:
-        """Per occupied cell, in the order of :meth:`obstacles`: the clearance it needs beyond
-        everything else's (``narrow_margin_mm`` for a narrow return's cell, else 0)."""
+        """Per occupied cell or camera point, in the order of :meth:`obstacles`: the clearance
+        it needs beyond everything else's (``narrow_margin_mm`` for a narrow return's cell,
+        else 0)."""
         i, j = self._occupied(now)
         pole = now - self.pole_t[i, j] <= self.cfg.obstacle_memory_s
-        return np.where(pole, self.narrow_margin_mm, 0.0)
+        camera = np.zeros(self._camera_points(now)[0].size)
+        return np.concatenate([np.where(pole, self.narrow_margin_mm, 0.0), camera])
 
     # --- cost queries ----------------------------------------------------------------------
 
