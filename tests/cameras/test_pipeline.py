@@ -351,3 +351,14 @@ def test_a_cart_absorbed_into_the_background_leaves_no_ghost_when_pushed_away() 
     assert pipeline.step(scene.frame(cart), next(slow_clock)) == []
     assert pipeline.step(scene.frame(), next(slow_clock)) == []
     assert pipeline.step(scene.frame(), next(slow_clock)) == []
+
+
+def test_a_dark_cart_wheeled_away_after_a_minute_and_a_half_leaves_no_ghost() -> None:
+    scene = Scene()
+    pipeline, clock = learned_pipeline(scene)
+    cart = [rectangle(2300.0, 1700.0, 900.0, 500.0, 90.0, 20.0)]
+    for _ in range(900):  # 90 s at 10 fps: about a quarter of it learned into the background
+        detections = pipeline.step(scene.frame(cart), next(clock))
+    assert len(detections) == 1
+    for _ in range(30):
+        assert pipeline.step(scene.frame(), next(clock)) == []

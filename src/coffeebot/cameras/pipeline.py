@@ -159,6 +159,8 @@ class CameraPipeline:
         self._foreground_average = np.zeros(shape, np.float32)
         self._frames_learned = 0
         self._last_t_s: float | None = None
+        self._previous: tuple[np.ndarray, np.ndarray] | None = None
+        """The last frame (smoothed) and where it was foreground."""
         self._open = _disc(settings.open_px)
         self._close = _disc(settings.close_px)
         self._guard = _disc(2 * settings.guard_px + 1)
@@ -184,15 +186,16 @@ class CameraPipeline:
         self._last_t_s = t_s
 
         smoothed = cv2.GaussianBlur(frame, (0, 0), self.settings.blur_sigma_px).astype(np.float32)
-        if self._frames_learned > 0:
-            self._follow_gain(smoothed)
+        gain = self._follow_gain(smoothed) if self._frames_learned > 0 else 1.0
         if not self.learned:
             # A plain mean of the first frames: each counts alike.
             self._frames_learned += 1
             cv2.accumulateWeighted(smoothed, self._background, 1.0 / self._frames_learned)
             return []
 
+        self._forget_vacated(smoothed, gain)
         mask = self._foreground(smoothed)
+        self._previous = (smoothed, mask > 0)
         self._learn(smoothed, mask, step_s)
         cv2.accumulateWeighted(
             (mask > 0).astype(np.float32),
@@ -210,9 +213,23 @@ class CameraPipeline:
         where something has stood for a few time constants, near 0 where things only pass."""
         return self._foreground_average.copy()
 
-    def _follow_gain(self, smoothed: np.ndarray) -> None:
+    def _forget_vacated(self, smoothed: np.ndarray, gain: float) -> None:
+        """Where something had stood (the foreground's average over half) and is gone at
+        once (the pixel was foreground and changed by more than the threshold since the last
+        frame), the background takes the frame: what it had learned of the thing would
+        otherwise stand there as a ghost for minutes (a cart wheeled away after a while)."""
+        if self._previous is None:
+            return
+        previous, was_foreground = self._previous
+        changed = cv2.absdiff(smoothed, previous * gain) > self.settings.threshold_grey
+        vacated = was_foreground & changed & (self._foreground_average > 0.5)
+        if vacated.any():
+            self._background[vacated] = smoothed[vacated]
+
+    def _follow_gain(self, smoothed: np.ndarray) -> float:
         """Rescale the background to this frame's lighting: the median ratio over pixels
-        that were floor, leaving out clipped ones, is robust to the objects among them."""
+        that were floor, leaving out clipped ones, is robust to the objects among them.
+        Returns the ratio (1 when no pixel can tell)."""
         usable = (
             self._floor_pixels
             & (self._background > 255.0 - SATURATED_GREY)
@@ -221,9 +238,10 @@ class CameraPipeline:
             & (smoothed < SATURATED_GREY)
         )
         if not usable.any():
-            return
+            return 1.0
         gain = float(np.median(smoothed[usable] / self._background[usable]))
         np.clip(self._background * gain, 0.0, 255.0, out=self._background)
+        return gain
 
     def _foreground(self, smoothed: np.ndarray) -> np.ndarray:
         """The cleaned foreground mask (uint8, 255 where something is)."""
