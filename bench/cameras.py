@@ -66,15 +66,16 @@ from typing import Any, Literal
 
 import numpy as np
 
-from coffeebot.cameras.calibration import calibrate
 from coffeebot.cameras.geometry import nominal_homography, project, raise_plane
-from coffeebot.cameras.identify import IdentifyRules, identify
-from coffeebot.cameras.pipeline import CameraPipeline, PipelineSettings
-from coffeebot.cameras.tracks import Track, Tracker, TrackerSettings
-from coffeebot.config import RobotConfig, load_robot_config
+from coffeebot.cameras.identify import IdentifyRules
+from coffeebot.cameras.locate import FixRules, Locator
+from coffeebot.cameras.odometry_path import OdometryPath
+from coffeebot.cameras.pipeline import PipelineSettings
+from coffeebot.cameras.tracks import Track
+from coffeebot.cameras.watch import CameraWatch
+from coffeebot.config import CamerasConfig, RobotConfig, load_robot_config
 from coffeebot.floorplan import Camera, FloorPlan, load_floorplan
 from coffeebot.messages import Odometry
-from coffeebot.perception.fusion import EkfPoseFusion, Odometer
 from coffeebot.sim.world import ObstacleSpec, Pose, RobotSpec, World
 from coffeebot.sim.world.ceiling_camera import SimCeilingCamera
 from coffeebot.sim.world.world import WorldRobot
@@ -83,7 +84,7 @@ ROOT = Path(__file__).resolve().parents[1]
 CAMERAS = ("lobby-2", "north-hall-2", "lobby-3", "north-hall-3")
 TELEMETRY_HZ = 50
 """The motor controller's telemetry: the odometry integrates every message."""
-WINDOW_S = 4.0
+WINDOWS_S = CamerasConfig().windows_s
 DEADLINE_S = 3.0
 TRUTH_GATE_MM = 300.0
 GROSS_MM = 300.0
@@ -563,34 +564,18 @@ def plan_trial(index: int, group: Group, setup: Setup, seed: int) -> TrialPlan:
 # --- running a trial --------------------------------------------------------------------------
 
 
-class DeadReckoning:
-    """A robot's odometry as its daemon computes it: seed 004's odometer on every telemetry
-    message, integrated by the EKF's motion model alone, from (0, 0, 0) where it stood."""
-
-    def __init__(self, config: RobotConfig) -> None:
-        self._odometer = Odometer(config.motor, config.state)
-        self._fusion = EkfPoseFusion(config.state)
-        self._fusion.reset(0.0, 0.0, 0.0, 1.0, 1.0)
-
-    def telemetry(self, robot: WorldRobot, t_s: float) -> None:
-        left, right = robot.encoder_ticks
-        left_mm_s, right_mm_s = robot.wheel_speeds_mm_s
-        message = Odometry(
-            controller_time_ms=round(t_s * 1000),
-            left_ticks=left,
-            right_ticks=right,
-            gyro_z_dps=robot.gyro_z_dps(),
-            left_mm_s=left_mm_s,
-            right_mm_s=right_mm_s,
-        )
-        step = self._odometer.step(message)
-        if step is not None:
-            self._fusion.predict(step)
-
-    def pose(self) -> tuple[float, float, float]:
-        """(x mm, y mm, heading rad) in the odometry's frame."""
-        x, y, heading_deg = self._fusion.pose()
-        return x, y, math.radians(heading_deg)
+def telemetry(robot: WorldRobot, t_s: float) -> Odometry:
+    """The motor controller's telemetry message of ``robot`` at ``t_s``."""
+    left, right = robot.encoder_ticks
+    left_mm_s, right_mm_s = robot.wheel_speeds_mm_s
+    return Odometry(
+        controller_time_ms=round(t_s * 1000),
+        left_ticks=left,
+        right_ticks=right,
+        gyro_z_dps=robot.gyro_z_dps(),
+        left_mm_s=left_mm_s,
+        right_mm_s=right_mm_s,
+    )
 
 
 @dataclass
@@ -685,7 +670,7 @@ def _reason(refusal: str) -> str:
     return refusal.split(" (")[0].split(":")[0]
 
 
-def run_trial(plan: TrialPlan, setup: Setup, window_s: float = WINDOW_S) -> TrialResult:
+def run_trial(plan: TrialPlan, setup: Setup, windows_s: Sequence[float] = WINDOWS_S) -> TrialResult:
     """Render, detect, track and identify every frame of one trial; judge every robot."""
     spec, camera = setup.spec, plan.camera
     fps = camera.fps
@@ -703,25 +688,24 @@ def run_trial(plan: TrialPlan, setup: Setup, window_s: float = WINDOW_S) -> Tria
         world.add_robot(spec, plan.floor, pose, robot_plan.name)
     robots = world.robots
     sim_camera = SimCeilingCamera(world, plan.floor, camera, seed=plan.seed)
-    calibration = calibrate(camera, floor=plan.floor)
-    pipeline = CameraPipeline(
-        camera, raise_plane(calibration.homography, camera, spec.height_mm), PipelineSettings()
-    )
-    tracker = Tracker(TrackerSettings())
-    rules = IdentifyRules()
+    watch = CameraWatch(camera, plan.floor, spec.height_mm, keep_s=max(windows_s))
+    locator = Locator(IdentifyRules(), FixRules(), windows_s)
     cups = {r.name: r.cup for r in plan.robots}
 
     # The empty scene, robots parked far away, until the background is learned.
     learn_frames = round(plan.placed_s * fps)
     for k in range(1, learn_frames + 1):
         world.step(1.0 / fps)
-        pipeline.step(_frame(sim_camera, cups), k / fps)
+        watch.see(_frame(sim_camera, cups), k / fps)
     for robot, robot_plan in zip(robots, plan.robots, strict=True):
         robot.place(robot_plan.start_pose(spec))
     drivers = [PathFollower(r.path, r.speed_mm_s, r.depart_s, spec) for r in plan.robots]
-    odometry = [DeadReckoning(setup.config) for _ in robots]
-    for dead_reckoning, robot in zip(odometry, robots, strict=True):
-        dead_reckoning.telemetry(robot, 0.0)
+    keep_s = max(windows_s) + 1.0
+    paths = {
+        r.name: OdometryPath(setup.config.motor, setup.config.state, keep_s) for r in plan.robots
+    }
+    for robot in robots:
+        paths[robot.name].add(telemetry(robot, 0.0), plan.placed_s)
 
     runs = [
         RobotRun(
@@ -739,9 +723,6 @@ def run_trial(plan: TrialPlan, setup: Setup, window_s: float = WINDOW_S) -> Tria
     ]
     view = View(camera, spec.height_mm)
     per_frame = round(TELEMETRY_HZ / fps)
-    window = round(window_s * fps) + 1
-    frame_times = [plan.placed_s]
-    history = [[d.pose()] for d in odometry]
     owners: dict[str, str | None] = {}
     pipeline_s = identify_s = 0.0
     frames = round(plan.duration_s * fps)
@@ -751,15 +732,13 @@ def run_trial(plan: TrialPlan, setup: Setup, window_s: float = WINDOW_S) -> Tria
             for robot, driver in zip(robots, drivers, strict=True):
                 robot.command_wheels(*driver.wheels(robot.pose, tick / TELEMETRY_HZ))
             world.step(1.0 / TELEMETRY_HZ)
-            for dead_reckoning, robot in zip(odometry, robots, strict=True):
-                dead_reckoning.telemetry(robot, (tick + 1) / TELEMETRY_HZ)
+            for robot in robots:
+                t_s = (tick + 1) / TELEMETRY_HZ
+                paths[robot.name].add(telemetry(robot, t_s), plan.placed_s + t_s)
         t_s, since_s = plan.placed_s + k / fps, k / fps
-        frame_times.append(t_s)
-        for poses, dead_reckoning in zip(history, odometry, strict=True):
-            poses.append(dead_reckoning.pose())
         frame = _frame(sim_camera, cups)
         started = time.perf_counter()
-        tracks = tracker.update(pipeline.step(frame, t_s), t_s)
+        tracks = watch.see(frame, t_s)
         pipeline_s += time.perf_counter() - started
         owners = _owners(tracks, robots, t_s, owners)
         for run, robot in zip(runs, robots, strict=True):
@@ -771,51 +750,29 @@ def run_trial(plan: TrialPlan, setup: Setup, window_s: float = WINDOW_S) -> Tria
                 and view.holds(robot.outline().segments[:, :2])
             ):
                 run.moved_in_view_s = since_s
-        if len(frame_times) < window:
-            continue
-        times = np.array(frame_times[-window:])
-        # Tracks followed over the whole window; their stretches cut by the image's border
-        # come as NaN rows, which the fits leave out.
-        covering = {
-            tr.id: tr.resample(times)
-            for tr in tracks
-            if tr.spans(float(times[0]), float(times[-1]))
-        }
-        odometry_paths = {
-            r.name: np.array(poses[-window:]) for r, poses in zip(plan.robots, history, strict=True)
-        }
         started = time.perf_counter()
-        result = identify(covering, odometry_paths, rules)
+        fixes, refused = locator.locate(watch, paths)
         identify_s += time.perf_counter() - started
         for run, robot in zip(runs, robots, strict=True):
-            match = result.matched.get(run.name)
-            if match is None:
+            fix = fixes.get(run.name)
+            if fix is None:
                 if (
                     run.named_s is None
                     and run.moved_in_view_s is not None
                     and since_s <= run.moved_in_view_s + DEADLINE_S
                 ):
-                    own = [i for i, name in owners.items() if name == run.name]
-                    young = own and not any(i in covering for i in own)
-                    reason = (
-                        "its track is younger than the window"
-                        if young
-                        else _reason(result.refused[run.name])
-                    )
-                    run.refusals[reason] += 1
+                    run.refusals[_reason(refused[run.name])] += 1
                 continue
             x, y, _ = robot.pose
-            error_mm = math.hypot(match.pose.x_mm - x, match.pose.y_mm - y)
-            owner = owners.get(match.track_id)
+            error_mm = math.hypot(fix.x_mm - x, fix.y_mm - y)
+            owner = owners.get(fix.track_id)
             if owner == run.name:
                 run.right_errors_mm.append(error_mm)
                 if run.named_s is None:
                     run.named_s = since_s
             else:
                 run.wrong_errors_mm.append(error_mm)
-                run.wrong.append(
-                    f"{since_s:.1f} s: track {match.track_id} of {owner or 'no robot'}"
-                )
+                run.wrong.append(f"{since_s:.1f} s: track {fix.track_id} of {owner or 'no robot'}")
     contacts = sum(len(robot.collisions) for robot in robots)
     return TrialResult(plan, runs, frames, pipeline_s, identify_s, contacts)
 
@@ -884,7 +841,10 @@ def _breakdown(label: str, runs: Sequence[RobotRun]) -> str:
 
 
 def print_report(
-    results: Sequence[TrialResult], summary: dict[str, Any], window_s: float, wall_s: float
+    results: Sequence[TrialResult],
+    summary: dict[str, Any],
+    windows_s: Sequence[float],
+    wall_s: float,
 ) -> None:
     runs = [run for result in results for run in result.runs]
     judged = [r for r in runs if r.outcome is not None]
@@ -898,8 +858,8 @@ def print_report(
         f"{len(results)} trials ({groups['single']} one robot, {groups['multi']} with 2-4), "
         f"{len(judged)} robot runs judged ({len(runs) - len(judged)} never moved in view), "
         f"cameras {', '.join(CAMERAS)}; 0-{max(people, default=0)} people in view per trial, "
-        f"{sum(people)} in all; identification window {window_s:g} s "
-        f"({round(window_s * camera_fps) + 1} frames); "
+        f"{sum(people)} in all; identification windows "
+        f"{', '.join(f'{w:g}' for w in windows_s)} s; "
         f"{sum(r.contacts for r in results)} contacts; wall time {wall_s:.0f} s"
     )
     print()
@@ -999,7 +959,12 @@ def main() -> None:
     parser.add_argument("--trials", type=int, default=150, help="trials with one robot")
     parser.add_argument("--multi", type=int, default=50, help="trials with 2-4 robots")
     parser.add_argument("--quick", action="store_true", help="8 + 4 trials")
-    parser.add_argument("--window-s", type=float, default=WINDOW_S)
+    parser.add_argument(
+        "--windows-s",
+        type=lambda text: tuple(float(w) for w in text.split(",")),
+        default=WINDOWS_S,
+        help="identification windows, comma-separated (default: the config's)",
+    )
     parser.add_argument("--seed", type=int, default=3)
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     args = parser.parse_args()
@@ -1008,13 +973,13 @@ def main() -> None:
     plans = [plan_trial(i, "single", setup, args.seed) for i in range(single)]
     plans += [plan_trial(single + i, "multi", setup, args.seed) for i in range(multi)]
     started = time.perf_counter()
-    results = [run_trial(plan, setup, args.window_s) for plan in plans]
+    results = [run_trial(plan, setup, args.windows_s) for plan in plans]
     wall_s = time.perf_counter() - started
     summary = summarise(results)
     if args.json:
         print(json.dumps(summary))
     else:
-        print_report(results, summary, args.window_s, wall_s)
+        print_report(results, summary, args.windows_s, wall_s)
 
 
 if __name__ == "__main__":

@@ -97,7 +97,7 @@ async def one_case(watched: bool, flat_out: bool = False) -> dict[str, Any]:
     )
     plan = load_floorplan(PLAN_PATH)
     scenario = random_scenario(plan, random.Random(1), 0)
-    config = scenario.apply_limits(config)
+    config = scenario.configure(config)
 
     def driver(runtime: Runtime, sim: Simulation) -> list[Module]:
         return [

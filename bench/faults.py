@@ -275,7 +275,7 @@ async def run_one(plan: RunPlan, speed: float) -> dict[str, Any]:
     """Run ``plan`` through the whole daemon; its record, judged."""
     floorplan = load_floorplan(PLAN)
     scenario = scenario_of(plan)
-    config = scenario.apply_limits(chaos_config(load_robot_config(BOARD)))
+    config = scenario.configure(chaos_config(load_robot_config(BOARD)))
     driver: list[ScenarioModule] = []
     end = EndState()
     holder: list[Simulation] = []

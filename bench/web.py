@@ -312,7 +312,7 @@ async def serve_and_measure(
             "staff": Staff(load_after_s=scenario.staff.load_after_s, pickup_after_s=None),
         }
     )
-    config = scenario.apply_limits(load_robot_config(BOARD))
+    config = scenario.configure(load_robot_config(BOARD))
     web = config.web.model_copy(
         update={"host": "127.0.0.1", "port": 0, "order_burst": 10**9, "stream_period_s": 0.1}
     )

@@ -159,6 +159,9 @@ class MotorConfig(SerialPortConfig):
 class GeometryConfig(Section):
     width_mm: float = Field(510.0, gt=0, le=BODY_MM)
     length_mm: float = Field(610.0, gt=0, le=BODY_MM)
+    height_mm: float = Field(
+        900.0, gt=0, le=BODY_MM, description="its top: where the ceiling cameras read it"
+    )
 
 
 class CollisionConfig(Section):
@@ -1065,6 +1068,41 @@ class SupervisionConfig(Section):
         return self
 
 
+class CamerasConfig(Section):
+    """The building's ceiling cameras (seed 003), when the robot uses them. A robot alone
+    runs their pipeline itself (the ``cameras`` module); the rules of identification and of
+    the map layer are :mod:`coffeebot.cameras`' defaults."""
+
+    enabled: bool = Field(
+        False,
+        description="watch the floor plan's ceiling cameras: they fix the robot's pose and "
+        "put what stands in the hallway on the map",
+    )
+    streams: dict[str, str] = Field(
+        {},
+        description="each camera's stream by its id in the floor plan: a URL or device "
+        "OpenCV opens (rtsp://..., /dev/video0); the simulated robot renders every camera "
+        "of the plan instead",
+    )
+    windows_s: tuple[float, ...] = Field(
+        (2.0, 4.0, 8.0),
+        min_length=1,
+        description="the stretches of track and odometry identification compares, each "
+        "frame: a robot is named on the shortest that names it (a fast robot soon after it "
+        "drives into view, one crawling through a crossing at 115 mm/s only over 8 s)",
+    )
+    fix_period_s: float = Field(
+        0.5, gt=0, le=60, description="at most one fix per camera this often"
+    )
+    out_after_s: float = Field(
+        3.0,
+        gt=0,
+        le=WAIT_S,
+        description="a camera with no frame for this long is reported out, and what it saw "
+        "stays on the map only until it expires",
+    )
+
+
 class RobotConfig(Section):
     name: str = "coffeebot"
     i2c: I2CConfig = I2CConfig()
@@ -1086,6 +1124,7 @@ class RobotConfig(Section):
     supervision: SupervisionConfig = SupervisionConfig()
     watchdog: WatchdogConfig = WatchdogConfig()
     fleet: FleetConfig = FleetConfig()
+    cameras: CamerasConfig = CamerasConfig()
 
     @property
     def robot_id(self) -> str:

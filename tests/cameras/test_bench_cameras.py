@@ -52,7 +52,7 @@ def test_one_robot_among_one_person_is_named_on_its_own_track_and_placed() -> No
         seed=1,
     )
 
-    result = bench.run_trial(plan, setup, window_s=2.5)
+    result = bench.run_trial(plan, setup)
 
     assert result.frames == 50
     assert result.pipeline_s > 0.0

@@ -130,6 +130,13 @@ class IdentifyRules(BaseModel):
         description="floor mm per odometry mm: 1.0 for positions of the robot's footprint; "
         "height / (height - top) for its top read on the floor's homography",
     )
+    max_speed_mm_s: float = Field(
+        1500.0,
+        gt=0,
+        description="a track that moves faster than this between two frames it saw whole is "
+        "no robot's path over that window (a blob that split or merged with another, what "
+        "was left when a cart went): 1.5 times the fastest robot, far above the jitter",
+    )
     min_points: int = Field(
         10,
         ge=3,

@@ -9,10 +9,11 @@ board's clock.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 from coffeebot.board import Board
+from coffeebot.cameras.sources import FrameSource, stream_sources
 from coffeebot.clock import Clock
 from coffeebot.config import RobotConfig
 from coffeebot.daemon import Daemon
@@ -24,6 +25,7 @@ from coffeebot.hardware.serial_port import open_port
 from coffeebot.messages import ALL_TOPICS, PoseEstimate
 from coffeebot.modules.angle import AngleModule
 from coffeebot.modules.base import Module
+from coffeebot.modules.cameras import CameraModule
 from coffeebot.modules.collision import CollisionModule
 from coffeebot.modules.door import DoorModule
 from coffeebot.modules.elevator import ElevatorInterface, ElevatorModule
@@ -118,6 +120,7 @@ def assemble(
     extra: ExtraModules | None = None,
     web: bool = True,
     broker_login: Credentials | None = None,
+    cameras: Mapping[str, FrameSource] | None = None,
 ) -> Runtime:
     """Build the board and every module from ``config`` and ``plan``.
 
@@ -129,11 +132,16 @@ def assemble(
     simulation);
     ``kernel_hz``: the I2C bus clock the kernel runs, for the self-check (a real bus only);
     ``elevator``: the building's elevator, if the robot can talk to it; ``true_pose``: a pose
-    the live map draws beside the estimate (the simulator's truth); ``web``: serve the UI.
+    the live map draws beside the estimate (the simulator's truth); ``web``: serve the UI;
+    ``cameras``: the ceiling cameras' frames by camera id, with ``[cameras] enabled`` (default:
+    the streams the config names; the simulator passes its renderings).
     """
     board = Board(ALL_TOPICS, clock=clock)
     modules = robot_modules(config, plan, open_i2c, open_serial, start)
     modules += navigation_modules(config, plan, elevator)
+    if config.cameras.enabled:
+        sources = stream_sources(config.cameras.streams, plan) if cameras is None else cameras
+        modules.append(CameraModule(config, plan, sources))
     orders: OrdersModule | None = None
     if config.fleet.enabled:
         modules.append(FleetBridge(config, broker_login))

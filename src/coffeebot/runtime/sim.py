@@ -18,6 +18,7 @@ from coffeebot.floorplan import FloorPlan
 from coffeebot.messages import PoseEstimate
 from coffeebot.modules.base import Module
 from coffeebot.runtime.assemble import Runtime, assemble
+from coffeebot.sim.cameras import sim_cameras
 from coffeebot.sim.crash import crash_switches
 from coffeebot.sim.rundir import run_directory
 from coffeebot.sim.simulation import SimElevatorLink, SimSetup, Simulation
@@ -92,6 +93,9 @@ async def build_sim(
             start=start,
             elevator=SimElevatorLink(sim),
             true_pose=true_pose(sim),
+            cameras=sim_cameras(world, plan, shared.world_time, seed=setup.seed)
+            if config.cameras.enabled
+            else None,
             extra=None if extra is None else lambda runtime: extra(runtime, sim),
             web=web,
         )

@@ -28,7 +28,7 @@ async def run_scenario(
     foxglove_port: int | None = None,
 ) -> ScenarioReport:
     """Run the whole daemon through ``scenario`` on the simulated robot; the report."""
-    config = scenario.apply_limits(config)
+    config = scenario.configure(config)
     driver: list[ScenarioModule] = []
 
     def add_driver(runtime: Runtime, sim: Simulation) -> list[Module]:

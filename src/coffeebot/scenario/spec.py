@@ -77,15 +77,23 @@ class Scenario(_Model):
     faults: list[Fault] = []
     limits: Limits = Limits()
     staff: Staff = Staff()
+    cameras: bool | None = Field(
+        None,
+        description="the building's ceiling cameras watch (rendered by the simulator) and "
+        "the robot uses them; unset keeps the board file's ``[cameras] enabled``",
+    )
 
-    def apply_limits(self, config: RobotConfig) -> RobotConfig:
-        """The board's config with this scenario's speed limits."""
+    def configure(self, config: RobotConfig) -> RobotConfig:
+        """The board's config with this scenario's speed limits and cameras."""
         motor, motion = config.motor, config.motion
         if self.limits.max_speed_mm_s is not None:
             motor = motor.model_copy(update={"max_speed_mm_s": self.limits.max_speed_mm_s})
         if self.limits.cruise_speed_mm_s is not None:
             motion = motion.model_copy(update={"cruise_speed_mm_s": self.limits.cruise_speed_mm_s})
-        return config.model_copy(update={"motor": motor, "motion": motion})
+        cameras = config.cameras
+        if self.cameras is not None:
+            cameras = cameras.model_copy(update={"enabled": self.cameras})
+        return config.model_copy(update={"motor": motor, "motion": motion, "cameras": cameras})
 
     def setup(self, speed: float = 1.0) -> SimSetup:
         """The simulated world this scenario starts from."""

@@ -62,6 +62,7 @@ class RobotSpec(BaseModel):
         values: dict[str, object] = {
             "length_mm": config.geometry.length_mm,
             "width_mm": config.geometry.width_mm,
+            "height_mm": config.geometry.height_mm,
             "wheel_base_mm": config.motor.wheel_base_mm,
             "axle_x_mm": config.motor.axle_x_mm,
             "wheel_diameter_mm": config.motor.wheel_diameter_mm,
