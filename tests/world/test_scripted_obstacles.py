@@ -74,3 +74,14 @@ def test_a_walk_before_its_clock_starts_stands_at_its_start_point() -> None:
     )
     assert spec.pose_at(-3.0)[:2] == (0.0, 0.0)
     assert spec.pose_at(1.0)[:2] == pytest.approx((500.0, 0.0))
+
+
+def test_a_cart_wheeled_away_is_there_until_it_is_gone(tiny_plan: FloorPlan) -> None:
+    cart = ObstacleSpec(
+        id="cart", kind="mail_cart", floor=1, x_mm=3000, y_mm=0, appear_s=1.0, gone_s=4.0
+    )
+    world = World(tiny_plan, ROBOT, floor=1, pose=Pose(1000, 0, 0), obstacles=[cart])
+    for t_s, there in ((0.5, False), (1.0, True), (3.9, True), (4.0, False), (9.0, False)):
+        assert bool(world.obstacle_at(0, t_s=t_s).segment_ids) is there, t_s
+    with pytest.raises(ValueError, match="gone_s must come after appear_s"):
+        ObstacleSpec(id="c", kind="mail_cart", floor=1, x_mm=0, y_mm=0, appear_s=5.0, gone_s=5.0)

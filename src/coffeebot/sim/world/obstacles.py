@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from coffeebot.sim.world import materials
 from coffeebot.sim.world.geometry import Surfaces
@@ -139,6 +139,17 @@ class ObstacleSpec(BaseModel):
     appear_s: float | None = Field(
         None, description="absent until this time on its own clock (None: always there)"
     )
+    gone_s: float | None = Field(
+        None,
+        description="absent from this time on its own clock (someone wheels it away; None: "
+        "there to the end)",
+    )
+
+    @model_validator(mode="after")
+    def _gone_after_it_appears(self) -> ObstacleSpec:
+        if self.gone_s is not None and self.gone_s <= (self.appear_s or 0.0):
+            raise ValueError("gone_s must come after appear_s (and after 0)")
+        return self
 
     @property
     def moving(self) -> bool:
@@ -147,10 +158,17 @@ class ObstacleSpec(BaseModel):
     @property
     def timed(self) -> bool:
         """Whether what it looks like changes with time (so the world cannot cache it)."""
-        return self.moving or self.trigger_mm is not None or self.appear_s is not None
+        return (
+            self.moving
+            or self.trigger_mm is not None
+            or self.appear_s is not None
+            or self.gone_s is not None
+        )
 
     def present_at(self, clock_s: float | None) -> bool:
         """Whether it exists at ``clock_s`` on its own clock (None: not started yet)."""
+        if self.gone_s is not None and clock_s is not None and clock_s >= self.gone_s:
+            return False
         if self.appear_s is None:
             return True
         return clock_s is not None and clock_s >= self.appear_s
