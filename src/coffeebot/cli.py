@@ -23,6 +23,7 @@ from pathlib import Path
 
 from coffeebot.board import Board
 from coffeebot.board.recording import Player, RecordingError, recording_info
+from coffeebot.cameras.check import check_cameras
 from coffeebot.clock import MonotonicClock, ScaledClock
 from coffeebot.config import RobotConfig, load_robot_config
 from coffeebot.daemon import Daemon
@@ -321,6 +322,7 @@ def _check_hardware(config: RobotConfig, args: argparse.Namespace) -> int:
             functools.partial(open_i2c_bus, config.i2c.bus),
             kernel_hz=kernel_bus_hz(config.i2c.bus),
         )
+        results += check_cameras(config.cameras, load_floorplan(args.floorplan))
     ok = all(r.ok for r in results)
     if args.json:
         print(json.dumps({"ok": ok, "results": [asdict(r) for r in results]}, indent=2))
