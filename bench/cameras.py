@@ -71,6 +71,7 @@ from coffeebot.cameras.identify import IdentifyRules
 from coffeebot.cameras.locate import FixRules, Locator
 from coffeebot.cameras.odometry_path import OdometryPath
 from coffeebot.cameras.pipeline import PipelineSettings
+from coffeebot.cameras.standing import StandingObjects, StandingRules
 from coffeebot.cameras.tracks import Track
 from coffeebot.cameras.watch import CameraWatch
 from coffeebot.config import CamerasConfig, RobotConfig, load_robot_config
@@ -784,6 +785,90 @@ def _frame(camera: SimCeilingCamera, cups: dict[str, bool]) -> np.ndarray:
     return frame
 
 
+# --- the map layer ----------------------------------------------------------------------------
+
+
+@dataclass
+class MapResult:
+    """One map trial: a cart or a box put down in view among people walking by."""
+
+    index: int
+    camera_id: str
+    kind: str
+    people: int
+    latency_s: float | None
+    """From the thing standing in view to its first object on the layer (None: never)."""
+    false_objects: int
+    """Objects the layer held that were not the thing (a person taken for furniture)."""
+
+
+def run_map_trial(index: int, setup: Setup, seed: int) -> MapResult:
+    """A cart or a box appears in a camera's view and stays; 0-3 people walk through. The
+    layer (:class:`~coffeebot.cameras.standing.StandingObjects`, as the cameras module keeps
+    it) is read every frame."""
+    rng = np.random.default_rng([seed, 10_000 + index])
+    camera, floor = setup.cameras[CAMERAS[index % len(CAMERAS)]]
+    site = "lobby" if camera.id.startswith("lobby") else "north-hall"
+    tea_room = any(w.id == "tea room" for w in setup.plan.floor(floor).walls)
+    learn_s = PipelineSettings().learn_frames / camera.fps
+    view = View(camera, 0.0)
+    kind: Literal["mail_cart", "cardboard_box"] = (
+        "mail_cart" if rng.random() < 0.5 else "cardboard_box"
+    )
+    while True:
+        x = camera.x_mm + float(rng.uniform(-1500.0, 1500.0))
+        y = float(rng.uniform(-400.0, 400.0))
+        if view.holds(rectangle(np.array([x, y]), 0.0, 1000.0, 600.0)):
+            break
+    appear_s = learn_s + float(rng.uniform(0.5, 3.0))
+    thing = ObstacleSpec(
+        id="thing",
+        kind=kind,
+        floor=floor,
+        x_mm=x,
+        y_mm=y,
+        heading_deg=float(rng.uniform(0.0, 180.0)),
+        appear_s=appear_s,
+    )
+    duration_s = 30.0
+    people = [
+        walker(
+            f"person{k + 1}",
+            floor,
+            _person_path(site, tea_room, rng),
+            float(rng.uniform(*PERSON_SPEED_RANGE_MM_S)),
+            learn_s + float(rng.uniform(0.0, duration_s - 5.0)),
+        )
+        for k in range(int(rng.integers(0, 4)))
+    ]
+    world = World(
+        setup.plan,
+        setup.spec,
+        floor=floor,
+        pose=Pose(6000.0, 0.0, 0.0),
+        obstacles=[thing, *people],
+        seed=seed,
+    )
+    sim_camera = SimCeilingCamera(world, floor, camera, seed=seed)
+    watch = CameraWatch(camera, floor, setup.spec.height_mm, keep_s=max(WINDOWS_S))
+    layer = StandingObjects(StandingRules())
+    latency_s: float | None = None
+    false_ids: set[str] = set()
+    frames = round((learn_s + duration_s) * camera.fps)
+    for k in range(1, frames + 1):
+        world.step(1.0 / camera.fps)
+        t_s = k / camera.fps
+        watch.see(_frame(sim_camera, {}), t_s)
+        layer.update(watch, t_s, robots=[])
+        for obj in layer.objects:
+            if math.hypot(obj.x_mm - x, obj.y_mm - y) <= max(obj.length_mm, obj.width_mm) / 2:
+                if latency_s is None:
+                    latency_s = t_s - appear_s
+            else:
+                false_ids.add(obj.id)
+    return MapResult(index, camera.id, kind, len(people), latency_s, len(false_ids))
+
+
 # --- the report -------------------------------------------------------------------------------
 
 
@@ -795,7 +880,7 @@ def _round(value: float | None, digits: int) -> float | None:
     return None if value is None else round(value, digits)
 
 
-def summarise(results: Sequence[TrialResult]) -> dict[str, Any]:
+def summarise(results: Sequence[TrialResult], maps: Sequence[MapResult]) -> dict[str, Any]:
     """The issue's figures, as ``--json`` prints them."""
     runs = [run for result in results for run in result.runs if run.outcome is not None]
     outcomes = Counter(run.outcome for run in runs)
@@ -817,7 +902,14 @@ def summarise(results: Sequence[TrialResult]) -> dict[str, Any]:
             "max": _round(max(errors, default=None), 1),
         },
         "gross_errors_over_300mm": sum(e > GROSS_MM for e in errors),
-        "map_update_latency_s_p95": None,
+        "map_update_latency_s_p95": _round(
+            _percentile([m.latency_s for m in maps if m.latency_s is not None], 95), 1
+        ),
+        "map": {
+            "trials": len(maps),
+            "found": sum(m.latency_s is not None for m in maps),
+            "false_objects": sum(m.false_objects for m in maps),
+        },
         "pipeline_fps": round(frames / busy_s, 1) if busy_s > 0 else None,
         "camera_fps": max(r.plan.camera.fps for r in results),
     }
@@ -895,7 +987,12 @@ def print_report(
         f"| fix error on right tracks only, p95 / max | {_percentile(right, 95) or 0:.1f} / "
         f"{max(right, default=0):.1f} mm | | |"
     )
-    print("| map update latency p95 | null: the cameras' map layer is not built yet | | - |")
+    layer = summary["map"]
+    print(
+        f"| map: things put down that reached the layer | {layer['found']} of {layer['trials']}, "
+        f"latency p95 {summary['map_update_latency_s_p95']} s | | |"
+    )
+    print(f"| map: objects that were no thing put down | {layer['false_objects']} | 0 | |")
     fast = pipeline_fps is not None and pipeline_fps >= TARGET_PIPELINE_X * camera_fps
     print(
         f"| pipeline + tracker, frames/s per camera | {pipeline_fps} "
@@ -966,7 +1063,11 @@ def main() -> None:
         help="identification windows, comma-separated (default: the config's)",
     )
     parser.add_argument("--seed", type=int, default=3)
+    parser.add_argument(
+        "--map-trials", type=int, default=24, help="a cart or a box put down in view"
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--save", type=Path, help="also write the JSON object to this file")
     args = parser.parse_args()
     single, multi = (8, 4) if args.quick else (args.trials, args.multi)
     setup = load_setup()
@@ -974,8 +1075,11 @@ def main() -> None:
     plans += [plan_trial(single + i, "multi", setup, args.seed) for i in range(multi)]
     started = time.perf_counter()
     results = [run_trial(plan, setup, args.windows_s) for plan in plans]
+    maps = [run_map_trial(i, setup, args.seed) for i in range(4 if args.quick else args.map_trials)]
     wall_s = time.perf_counter() - started
-    summary = summarise(results)
+    summary = summarise(results, maps)
+    if args.save is not None:
+        args.save.write_text(json.dumps(summary) + "\n")
     if args.json:
         print(json.dumps(summary))
     else:

@@ -65,12 +65,18 @@ def test_one_robot_among_one_person_is_named_on_its_own_track_and_placed() -> No
     assert run.time_to_identify_s is not None and run.time_to_identify_s <= bench.DEADLINE_S
     assert run.errors_mm and max(run.errors_mm) < 50.0
 
-    summary = bench.summarise([result])
+    cart = bench.run_map_trial(0, setup, seed=3)
+    assert cart.latency_s is not None and cart.false_objects == 0
+    # Three seconds to be still, ten standing: then it is on the map.
+    assert 13.0 <= cart.latency_s <= 15.0
+
+    summary = bench.summarise([result], [cart])
     assert set(summary) == {
         "identification",
         "fix_error_mm",
         "gross_errors_over_300mm",
         "map_update_latency_s_p95",
+        "map",
         "pipeline_fps",
         "camera_fps",
     }
@@ -83,7 +89,8 @@ def test_one_robot_among_one_person_is_named_on_its_own_track_and_placed() -> No
     }
     assert set(summary["fix_error_mm"]) == {"p50", "p95", "max"}
     assert summary["gross_errors_over_300mm"] == 0
-    assert summary["map_update_latency_s_p95"] is None
+    assert summary["map_update_latency_s_p95"] == round(cart.latency_s, 1)
+    assert summary["map"] == {"trials": 1, "found": 1, "false_objects": 0}
     assert summary["pipeline_fps"] > 0.0
     assert summary["camera_fps"] == camera.fps
     json.dumps(summary)

@@ -87,7 +87,8 @@ class StandingObjects:
             seen_now = track.latest.t_s >= now_s
             if not seen_now:
                 continue
-            still = track.still and not track.latest.cut and track.id not in robot_tracks
+            # A blob cut by the image's border is still a thing: the part in view is mapped.
+            still = track.still and track.id not in robot_tracks
             if still and self._near_robot(
                 watch.level, track.latest.x_mm, track.latest.y_mm, robots
             ):
