@@ -52,7 +52,7 @@ def feed(
     return layer.update(cameras, t_s, robots, robot_tracks)
 
 
-def test_a_track_standing_long_enough_becomes_an_object_read_on_the_floor() -> None:
+def test_a_track_standing_long_enough_becomes_an_object_covering_it_at_any_height() -> None:
     layer, cameras = StandingObjects(RULES), watch()
     for k in range(100):  # 9.9 s: not yet
         assert not feed(layer, cameras, [seen("hall-1", k / 10, 25000.0, 400.0)], k / 10)
@@ -65,14 +65,20 @@ def test_a_track_standing_long_enough_becomes_an_object_read_on_the_floor() -> N
         2,
         0.0,
     )
-    # Read on the floor, not on the robot's top: 1000 mm from the nadir on the top plane is
-    # 2600 / 1700 of that on the floor, and the rectangle grows alike.
+    # What a flat thing and a thing as tall as a robot would cover, together: the blob read
+    # on the robot's top (900 x 600 mm about (25 000, 400)) and on the floor, where that is
+    # scaled by 2600 / 1700 about the camera's nadir (24 000, 0).
     ratio = 2600.0 / (2600.0 - 900.0)
-    assert math.hypot(cart.x_mm - 24000.0, cart.y_mm) == pytest.approx(
-        math.hypot(1000.0, 400.0) * ratio, rel=0.01
+    floor_x, floor_y = 24000.0 + 1000.0 * ratio, 400.0 * ratio
+    x0, x1 = 25000.0 - 450.0, floor_x + 450.0 * ratio
+    y0, y1 = 400.0 - 300.0, floor_y + 300.0 * ratio
+    assert cart.x_mm == pytest.approx((x0 + x1) / 2, abs=2.0)
+    assert cart.y_mm == pytest.approx((y0 + y1) / 2, abs=2.0)
+    assert cart.length_mm == pytest.approx(x1 - x0, abs=2.0)
+    assert cart.width_mm == pytest.approx(y1 - y0, abs=2.0)
+    assert cart.axis_deg == pytest.approx(0.0, abs=0.1) or cart.axis_deg == pytest.approx(
+        180.0, abs=0.1
     )
-    assert cart.length_mm == pytest.approx(900.0 * ratio, rel=0.01)
-    assert cart.width_mm == pytest.approx(600.0 * ratio, rel=0.01)
 
 
 def test_it_leaves_the_map_as_soon_as_it_moves() -> None:

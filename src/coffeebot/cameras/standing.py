@@ -14,12 +14,14 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Sequence
 
+import cv2
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from coffeebot.cameras.pipeline import Detection
 from coffeebot.cameras.watch import CameraWatch
 from coffeebot.messages import CameraObject
+from coffeebot.rectangles import corners
 
 
 class StandingRules(BaseModel):
@@ -132,20 +134,25 @@ class StandingObjects:
 def _object(
     watch: CameraWatch, track_id: str, detection: Detection, since_s: float, now_s: float
 ) -> CameraObject:
-    """A track's latest blob as a map object, its rectangle read on the floor."""
-    corners = watch.on_floor(detection)
-    centre = corners.mean(axis=0)
-    length = float(np.linalg.norm(corners[0] - corners[1]))
-    width = float(np.linalg.norm(corners[1] - corners[2]))
+    """A track's latest blob as a map object: the smallest rectangle holding the blob read
+    on the floor and on a robot's top, so the footprint covers the thing whatever its height
+    up to a robot's (a flat box lies where the floor reading puts it, a cart's top shows
+    further out from the camera's nadir than it stands)."""
+    on_top = corners(
+        detection.x_mm, detection.y_mm, detection.length_mm, detection.width_mm, detection.axis_deg
+    )
+    both = np.vstack([on_top, watch.on_floor(detection)]).astype(np.float32)
+    (x, y), (a, b), angle = cv2.minAreaRect(both)
+    length, width, axis = (a, b, angle) if a >= b else (b, a, angle + 90.0)
     return CameraObject(
         id=track_id,
         camera_id=watch.camera.id,
         floor=watch.level,
-        x_mm=round(float(centre[0]), 1),
-        y_mm=round(float(centre[1]), 1),
-        length_mm=round(length, 1),
-        width_mm=round(width, 1),
-        axis_deg=detection.axis_deg,
+        x_mm=round(float(x), 1),
+        y_mm=round(float(y), 1),
+        length_mm=round(float(length), 1),
+        width_mm=round(float(width), 1),
+        axis_deg=round(float(axis) % 180.0, 2),
         standing_since_s=since_s,
         seen_s=now_s,
     )
