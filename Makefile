@@ -40,7 +40,7 @@ test: $(STAMP) system-deps
 
 # Refresh the README's screenshots from the browser tests.
 screenshots: $(STAMP) system-deps
-	COFFEEBOT_SCREENSHOTS=docs/screenshots $(BIN)/python -m pytest -q tests/web/test_browser_sim.py tests/fleet/test_fleet_map.py
+	COFFEEBOT_SCREENSHOTS=docs/screenshots $(BIN)/python -m pytest -q tests/web/test_browser_sim.py tests/web/test_browser_camera_cart.py tests/fleet/test_fleet_map.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests bench

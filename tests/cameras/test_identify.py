@@ -270,14 +270,16 @@ def test_paths_of_different_lengths_are_rejected() -> None:
 
 
 def test_a_robot_too_slow_to_be_named_still_keeps_another_off_its_track() -> None:
-    """Alpha crept 580 mm along a straight line: its odometry spreads 290 mm, too little to
-    name it, yet explains its own track. Bravo, out of view, drove a straight line 620 mm
-    long: its odometry fits alpha's track too, at a scale of 0.94. Nothing tells which of
-    the two the track is, so neither is named on it (the bench's camera trials placed a
-    robot 4.9 m off this way, on a robot's track that had spread 296 mm)."""
+    """Alpha crept a straight line just too short to name it (its odometry spreads 97 % of
+    ``min_motion_mm``), yet explains its own track. Bravo, out of view, drove a straight
+    line 7 % longer: its odometry fits alpha's track too, at a scale of 0.94. Nothing tells
+    which of the two the track is, so neither is named on it (the bench's camera trials
+    placed a robot 4.9 m off this way, on a robot's track that had spread 296 mm when the
+    least was 300)."""
     rng = np.random.default_rng(11)
-    alpha = drive((1000.0, 1000.0, 0.0), 580.0 / ((Q - 1) * DT_S), 0.0)
-    bravo = drive((6000.0, 3000.0, 1.0), 620.0 / ((Q - 1) * DT_S), 0.0)
+    least = RULES.min_motion_mm
+    alpha = drive((1000.0, 1000.0, 0.0), 2 * 0.967 * least / ((Q - 1) * DT_S), 0.0)
+    bravo = drive((6000.0, 3000.0, 1.0), 2 * 1.033 * least / ((Q - 1) * DT_S), 0.0)
     track = camera_track(alpha, rng, 10.0)
     robots = {"alpha": odometry_of(alpha), "bravo": odometry_of(bravo)}
     intruder = fit_similarity(robots["bravo"][:, :2], track)
@@ -287,7 +289,7 @@ def test_a_robot_too_slow_to_be_named_still_keeps_another_off_its_track() -> Non
     result = identify({"t1": track}, robots, RULES)
 
     assert result.matched == {}
-    assert result.refused["alpha"].startswith("did not move enough (290 mm")
+    assert result.refused["alpha"].startswith(f"did not move enough ({0.967 * least:.0f} mm")
     assert result.refused["bravo"] == "ambiguous: robots bravo and alpha fit track t1 within 2x"
     assert result.unmatched_tracks == ["t1"]
 

@@ -108,13 +108,15 @@ class IdentifyRules(BaseModel):
         "again as all the noise",
     )
     min_motion_mm: float = Field(
-        300.0,
+        150.0,
         ge=0,
         description="how far the robot's waypoints must spread from their mean. The spread, not "
         "the path length, fixes the fit's rotation: a robot shuffling on the spot adds "
-        "length but no spread, and a robot that stood still fits any standing blob. 300 mm "
-        "(a robot's body) over 50 waypoints turns 20 mm of camera noise into about a degree "
-        "of heading",
+        "length but no spread, and a robot that stood still fits any standing blob. 150 mm "
+        "(a straight 300 mm) over 20 waypoints turns 10 mm of blob jitter into about two "
+        "degrees of heading, which the fix's heading sigma says; it names a robot at "
+        "150-240 mm/s within 3 s of moving in view (300 mm named 29 of 64 such runs in "
+        "time, 150 mm 62 of 64, with no wrong match in either benchmark run)",
     )
     scale_tolerance: float = Field(
         0.1,
