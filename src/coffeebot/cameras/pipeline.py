@@ -20,7 +20,7 @@ were floor in the previous frame, so the jump itself never shows as foreground.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
@@ -34,6 +34,8 @@ SATURATED_GREY = 250.0
 """Pixels this bright (or as dark as ``255 - SATURATED_GREY``) are clipped by the sensor and
 say nothing about the lighting's gain."""
 
+GHOST_MARGIN_PX = 3
+"""Around a blob's bounding box: its outline (3 px wide) and the gradient's 3 x 3 reach."""
 
 PIXEL_CENTRE = 0.5
 """OpenCV numbers a pixel by its index; the homographies of
@@ -203,10 +205,11 @@ class CameraPipeline:
             _rate(step_s, self.settings.foreground_time_constant_s),
         )
         contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
-        if contours:
-            contours = self._drop_ghosts(contours, smoothed)
-        found = (self._measure(contour, t_s) for contour in contours)
-        return [d for d in found if d is not None]
+        measured = [(c, d) for c in contours if (d := self._measure(c, t_s)) is not None]
+        if not measured:
+            return []
+        ghost = self._ghost_test(smoothed)
+        return [detection for contour, detection in measured if not ghost(contour)]
 
     def foreground_average(self) -> np.ndarray:
         """The running average of the foreground mask, 0-1 per pixel (seed VI.B): near 1
@@ -269,35 +272,36 @@ class CameraPipeline:
         )
         self._floor_pixels = floor > 0
 
-    def _drop_ghosts(
-        self, contours: Sequence[np.ndarray], smoothed: np.ndarray
-    ) -> list[np.ndarray]:
-        """The blobs that are things, not ghosts; a ghost's pixels become background at
-        once (left to the slow objects' rate, a ghost would stand for minutes)."""
-        frame_edges = _edges(smoothed)
-        background_edges = _edges(self._background)
+    def _ghost_test(self, smoothed: np.ndarray) -> Callable[[np.ndarray], bool]:
+        """Whether a blob is a ghost; a ghost's pixels become background at once (left to
+        the slow objects' rate, a ghost would stand for minutes). Each blob is judged within
+        its own bounding box, grown by the outline's width."""
         height, width = smoothed.shape
-        kept: list[np.ndarray] = []
-        for contour in contours:
-            outline = np.zeros((height, width), np.uint8)
-            cv2.drawContours(outline, [contour], -1, 255, thickness=3)
+
+        def ghost(contour: np.ndarray) -> bool:
+            left, top, w, h = cv2.boundingRect(contour)
+            x0, y0 = max(0, left - GHOST_MARGIN_PX), max(0, top - GHOST_MARGIN_PX)
+            x1 = min(width, left + w + GHOST_MARGIN_PX)
+            y1 = min(height, top + h + GHOST_MARGIN_PX)
+            box = (slice(y0, y1), slice(x0, x1))
+            outline = np.zeros((y1 - y0, x1 - x0), np.uint8)
+            cv2.drawContours(outline, [contour], -1, 255, thickness=3, offset=(-x0, -y0))
             # The image's border is no edge of the object: it was cut there.
-            outline[[0, -1], :] = 0
-            outline[:, [0, -1]] = 0
             on_outline = outline > 0
+            on_outline &= _inside_border(y0, y1, x0, x1, height, width)
             if not on_outline.any():
-                kept.append(contour)
-                continue
-            seen = float(frame_edges[on_outline].mean())
-            remembered = float(background_edges[on_outline].mean())
+                return False
+            seen = float(_edges(smoothed[box])[on_outline].mean())
+            remembered = float(_edges(self._background[box])[on_outline].mean())
             if seen >= self.settings.ghost_edge_ratio * remembered:
-                kept.append(contour)
-                continue
-            region = np.zeros((height, width), np.uint8)
-            cv2.drawContours(region, [contour], -1, 255, thickness=cv2.FILLED)
+                return False
+            region = np.zeros((y1 - y0, x1 - x0), np.uint8)
+            cv2.drawContours(region, [contour], -1, 255, thickness=cv2.FILLED, offset=(-x0, -y0))
             absorbed = cv2.dilate(region, self._guard) > 0
-            self._background[absorbed] = smoothed[absorbed]
-        return kept
+            self._background[box][absorbed] = smoothed[box][absorbed]
+            return True
+
+        return ghost
 
     def _measure(self, contour: np.ndarray, t_s: float) -> Detection | None:
         """The blob's area, centroid and enclosing rectangle, measured on the plane itself:
@@ -334,6 +338,14 @@ class CameraPipeline:
             camera_id=self.camera.id,
             cut=cut,
         )
+
+
+def _inside_border(y0: int, y1: int, x0: int, x1: int, height: int, width: int) -> np.ndarray:
+    """Of the box [y0, y1) x [x0, x1), the pixels not on the image's outermost rows and
+    columns."""
+    rows = np.arange(y0, y1)
+    columns = np.arange(x0, x1)
+    return ((rows > 0) & (rows < height - 1))[:, None] & ((columns > 0) & (columns < width - 1))
 
 
 def _edges(image: np.ndarray) -> np.ndarray:
