@@ -4,7 +4,6 @@ is out."""
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterable, Sequence
 
 import pytest

@@ -15,7 +15,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from coffeebot.cameras.identify import IdentifyRules, Similarity, identify
-from coffeebot.cameras.odometry_path import OdometryPath
+from coffeebot.cameras.odometry_path import PosePath
 from coffeebot.cameras.watch import CameraWatch
 from coffeebot.messages import CameraFix
 
@@ -58,6 +58,10 @@ class Locator:
     view, a slow one only in a long one. A robot takes its match from the shortest window
     that names it; matches that disagree (one robot on two tracks, two robots on one track)
     are refused, as any ambiguity is.
+
+    The windows end at the newest frame every robot's odometry reaches (within
+    ``telemetry_slack_s``): on the robot itself that is the newest frame; the fleet's camera
+    service gets the odometry in batches over the broker, a moment later.
     """
 
     def __init__(
@@ -77,15 +81,17 @@ class Locator:
         return known
 
     def locate(
-        self, watch: CameraWatch, paths: Mapping[str, OdometryPath]
+        self, watch: CameraWatch, paths: Mapping[str, PosePath]
     ) -> tuple[dict[str, CameraFix], dict[str, str]]:
         """Fixes of the robots named on ``watch``'s tracks now, and for every other robot of
         ``paths`` why it was not named (over the shortest window, in plain words)."""
         named: dict[str, tuple[str, Similarity, np.ndarray, np.ndarray]] = {}
         refused: dict[str, str] = {}
         clashing: set[str] = set()
+        reached = [latest[0] for path in paths.values() if (latest := path.latest) is not None]
+        until_s = min(reached) + self.fix_rules.telemetry_slack_s if reached else None
         for window_s in self.windows_s:
-            found, reasons = self._identify(watch, paths, window_s)
+            found, reasons = self._identify(watch, paths, window_s, until_s)
             for robot, reason in reasons.items():
                 refused.setdefault(robot, reason)
             for robot, match in found.items():
@@ -115,10 +121,15 @@ class Locator:
         return fixes, refused
 
     def _identify(
-        self, watch: CameraWatch, paths: Mapping[str, OdometryPath], window_s: float
+        self,
+        watch: CameraWatch,
+        paths: Mapping[str, PosePath],
+        window_s: float,
+        until_s: float | None,
     ) -> tuple[dict[str, tuple[str, Similarity, np.ndarray, np.ndarray]], dict[str, str]]:
-        """One window's matches (track, transform, track path, odometry path) and reasons."""
-        window = watch.window(window_s)
+        """One window's matches (track, transform, track path, odometry path) and reasons,
+        over the frames up to ``until_s``."""
+        window = watch.window(window_s, until_s)
         if window is None:
             return {}, dict.fromkeys(paths, f"the camera has not run for {window_s:g} s")
         times, seen = window

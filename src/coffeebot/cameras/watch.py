@@ -22,7 +22,8 @@ from coffeebot.rectangles import corners
 class CameraWatch:
     """Camera ``camera`` over floor ``level``; robots are read on the plane of their top,
     ``robot_height_mm`` above the floor, so a robot's blob is where the robot is. Frame
-    times are kept for the last ``keep_s`` (the longest identification window)."""
+    times are kept for the last ``keep_s`` (the longest identification window, and how far
+    before the newest frame a window may end)."""
 
     def __init__(
         self,
@@ -50,23 +51,26 @@ class CameraWatch:
         self._frame_times.append(t_s)
         return self.tracks
 
-    def window(self, window_s: float) -> tuple[np.ndarray, dict[str, np.ndarray]] | None:
-        """The frame times of the last ``window_s`` and every track followed over all of
-        them, resampled there (rows cut by the image's border are NaN); None until the
-        camera has run that long without a gap."""
+    def window(
+        self, window_s: float, until_s: float | None = None
+    ) -> tuple[np.ndarray, dict[str, np.ndarray]] | None:
+        """The frame times of the last ``window_s`` (of the frames up to ``until_s``, if
+        given) and every track followed over all of them, resampled there (rows cut by the
+        image's border are NaN); None until the camera has run that long without a gap."""
         frames = round(window_s * self.camera.fps) + 1
-        if len(self._frame_times) < frames:
+        stamps = [t for t in self._frame_times if until_s is None or t <= until_s]
+        if len(stamps) < frames:
             return None
-        times = np.array(list(self._frame_times)[-frames:])
+        times = np.array(stamps[-frames:])
         if times[-1] - times[0] > window_s * 1.5:
             return None  # frames were dropped: the window is not one stretch of motion
         start, end = float(times[0]), float(times[-1])
         return times, {t.id: t.resample(times) for t in self.tracks if t.spans(start, end)}
 
     def on_floor(self, detection: Detection) -> np.ndarray:
-        """The corners (4, 2) of a detection's rectangle read on the floor: where an object
-        of any height up to a robot's could stand. Exact at the edge facing the camera's
-        nadir; further out it can be long by the object's height over the camera's."""
+        """The corners (4, 2) of a detection's rectangle read on the floor: where a flat
+        object would lie. The same blob read on the robot's top (the detection itself) is
+        where an object as tall as a robot would stand; anything between lies between."""
         on_top = corners(
             detection.x_mm,
             detection.y_mm,
@@ -80,4 +84,3 @@ class CameraWatch:
         """The image's corners (4, 2) on the floor: what the camera sees."""
         w, h = self.camera.width_px, self.camera.height_px
         return to_plane(self._floor, np.array([(0.0, 0.0), (w, 0.0), (w, h), (0.0, h)]))
-

@@ -3,8 +3,9 @@ with a generated configuration, users and per-robot access rules, stopped when d
 
 A building's real broker is configured by whoever runs it (docs/fleet.md shows the same
 rules); this is the same configuration made on the spot. Every robot logs in as its robot id
-and may write only its own reports and read only its own orders (``pattern`` rules with
-``%u``); the dispatcher may read and write everything under ``coffeebot/v1``.
+and may write only its own reports and odometry and read only its own orders and camera
+fixes, and the cameras' layer (``pattern`` rules with ``%u``); the dispatcher, camera
+service included, may read and write everything under ``coffeebot/v1``.
 """
 
 from __future__ import annotations
@@ -22,7 +23,15 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from coffeebot.errors import CoffeebotError
-from coffeebot.fleet.protocol import DISPATCHER_TO_ROBOT, ROBOT_TO_DISPATCHER, ROOT
+from coffeebot.fleet.protocol import (
+    CAMERA_LAYER_TOPIC,
+    CAMERAS_TO_ROBOT,
+    DISPATCHER_CONNECTION,
+    DISPATCHER_TO_ROBOT,
+    ROBOT_TO_CAMERAS,
+    ROBOT_TO_DISPATCHER,
+    ROOT,
+)
 
 DISPATCHER_USER = "dispatcher"
 START_TIMEOUT_S = 10.0
@@ -51,11 +60,12 @@ class BrokerAddress:
 def acl_rules() -> str:
     """The access rules: the dispatcher everything, each robot its own topics only."""
     lines = [f"user {DISPATCHER_USER}", f"topic readwrite {ROOT}/#", ""]
-    for kind in ROBOT_TO_DISPATCHER:
+    for kind in (*ROBOT_TO_DISPATCHER, *ROBOT_TO_CAMERAS):
         lines.append(f"pattern write {ROOT}/robots/%u/{kind}")
-    for kind in DISPATCHER_TO_ROBOT:
+    for kind in (*DISPATCHER_TO_ROBOT, *CAMERAS_TO_ROBOT):
         lines.append(f"pattern read {ROOT}/robots/%u/{kind}")
-    lines.append(f"pattern read {ROOT}/dispatcher/connection")
+    lines.append(f"pattern read {DISPATCHER_CONNECTION}")
+    lines.append(f"pattern read {CAMERA_LAYER_TOPIC}")
     return "\n".join(lines) + "\n"
 
 

@@ -19,6 +19,16 @@ so a message is either exactly what this version means or refused with the reaso
     coffeebot/v1/robots/{robot}/traffic      dispatcher QoS 0, about twice a second: the
                                                         other robots' poses, for passing
     coffeebot/v1/dispatcher/connection       dispatcher retained, QoS 1
+    coffeebot/v1/robots/{robot}/odometry     robot      QoS 0, twice a second: its dead-
+                                                        reckoned path, for the cameras
+    coffeebot/v1/robots/{robot}/camera_fix   cameras    QoS 0: a ceiling camera's fix of it
+    coffeebot/v1/cameras/layer               cameras    retained, QoS 0, every second: what
+                                                        the cameras see standing
+
+The cameras' messages come from the camera service in the dispatcher's daemon
+(:mod:`coffeebot.fleet.camera_service`). Times in them that two machines must agree on
+(odometry samples, a fix's moment, when an object was seen) are on the fleet's shared time
+base (:data:`FleetClock`).
 
 The version is in the topic, so a robot and a dispatcher of different versions do not
 misread each other: each ignores (and counts) what it does not understand.
@@ -26,13 +36,18 @@ misread each other: each ignores (and counts) what it does not understand.
 
 from __future__ import annotations
 
+import itertools
 import re
+from collections.abc import Callable
 from enum import StrEnum
-from typing import Literal, TypeVar
+from typing import Annotated, Literal, TypeVar
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
+from coffeebot.clock import Clock
 from coffeebot.messages import (
+    CameraFix,
+    CameraLayer,
     DeliveryProblem,
     HealthStatus,
     MotionState,
@@ -170,6 +185,77 @@ class Traffic(FleetMessage):
     robots: list[TrafficRobot] = Field(default_factory=list, max_length=64)
 
 
+FleetClock = Callable[[], float]
+"""The fleet's shared time base, for times two machines must agree on: Unix time (the
+machines' clocks kept by NTP, as every ``at_s`` stamp already assumes) on a real site, the
+one simulated clock when a simulation co-hosts the whole fleet."""
+
+
+def fleet_offset(clock: Clock, fleet_clock: FleetClock) -> float:
+    """What to add to a time on ``clock`` (a board's) to have it on the fleet's time base;
+    what to subtract for the way back."""
+    return fleet_clock() - clock.now()
+
+
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+MAX_SAMPLES = 64
+
+
+class OdometrySample(FleetMessage):
+    t_s: Finite = Field(description="the fleet's shared time (FleetClock)")
+    x_mm: Finite
+    y_mm: Finite
+    heading_deg: Finite
+    """Unwrapped: continuous from one sample to the next, so it may pass 360."""
+
+
+class OdometryBatch(FleetMessage):
+    """A robot's latest stretch of dead-reckoned path, in its odometry's own frame (never
+    pulled onto the plan), for the camera service to name it on a camera's tracks; with
+    where its own estimate puts it, so that it is not taken for an object standing there."""
+
+    samples: list[OdometrySample] = Field(min_length=1, max_length=MAX_SAMPLES)
+    floor: int | None = None
+    x_mm: Finite | None = None
+    y_mm: Finite | None = None
+
+    @field_validator("samples")
+    @classmethod
+    def _in_time_order(cls, samples: list[OdometrySample]) -> list[OdometrySample]:
+        times = [sample.t_s for sample in samples]
+        if any(later <= earlier for earlier, later in itertools.pairwise(times)):
+            raise ValueError("sample times must increase")
+        return samples
+
+
+class CameraFixReport(FleetMessage):
+    """A ceiling camera's fix of the robot, for the moment of the robot's odometry sample at
+    ``odometry_at_s`` (the newest the service had): the robot carries it on to now along its
+    own odometry."""
+
+    odometry_at_s: Finite
+    fix: CameraFix
+
+
+class CameraLayerReport(FleetMessage):
+    """The map's camera layer as the service made it at ``at_s``; its objects' times are on
+    the fleet's time base too."""
+
+    at_s: Finite
+    layer: CameraLayer
+
+
+def layer_shifted(layer: CameraLayer, by_s: float) -> CameraLayer:
+    """``layer`` with its objects' times moved by ``by_s``: from one clock to another."""
+    objects = [
+        obj.model_copy(
+            update={"standing_since_s": obj.standing_since_s + by_s, "seen_s": obj.seen_s + by_s}
+        )
+        for obj in layer.objects
+    ]
+    return layer.model_copy(update={"objects": objects})
+
+
 M = TypeVar("M", bound=FleetMessage)
 
 ROBOT_TO_DISPATCHER: dict[str, type[FleetMessage]] = {
@@ -185,9 +271,22 @@ DISPATCHER_TO_ROBOT: dict[str, type[FleetMessage]] = {
     "grant": LeaseGrant,
     "traffic": Traffic,
 }
-QOS: dict[str, int] = {"state": 0, "traffic": 0}
-"""QoS 1 (at least once) for everything but the frequent state reports and traffic: each of
-those is superseded a fraction of a second later."""
+ROBOT_TO_CAMERAS: dict[str, type[FleetMessage]] = {"odometry": OdometryBatch}
+CAMERAS_TO_ROBOT: dict[str, type[FleetMessage]] = {"camera_fix": CameraFixReport}
+CAMERA_LAYER_TOPIC = f"{ROOT}/cameras/layer"
+"""Every robot's, retained: a robot that (re)connects has it at once."""
+
+QOS: dict[str, int] = {
+    "state": 0,
+    "traffic": 0,
+    "odometry": 0,
+    "camera_fix": 0,
+    "camera_layer": 0,
+}
+"""QoS 1 (at least once) for everything but the frequent state reports, traffic and camera
+messages: each of those is superseded a fraction of a second later (a lost odometry batch
+only delays a fix; a fix lost is followed by the next while the robot is in view, and one
+delivered late after a reconnect would be too old to use)."""
 
 
 def robot_topic(robot: str, kind: str) -> str:

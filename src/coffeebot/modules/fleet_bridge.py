@@ -8,6 +8,11 @@ works on), navigation's delivery reports (numbered, QoS 1), lease requests and a
 the dispatcher: the next order (``orders/dispatch`` on the board; refused while it carries
 another), instant actions (``operator/event``, ``operator/estop``), lease grants
 (``fleet/leases``) and where the other robots are (``fleet/traffic``, for passing them).
+With ``[cameras] enabled`` it also sends the robot's odometry to the fleet's camera service
+and puts the service's fixes of it and the map's camera layer on the board (``cameras/fix``,
+``cameras/layer``), as the cameras module does on a robot alone
+(:mod:`coffeebot.fleet.camera_link`); without the broker there are no fixes and the layer
+goes stale, which navigation takes for no camera information.
 
 **Nothing here is part of the safety loop**, and a robot that loses the broker finishes the
 delivery it carries: navigation's reports are kept, in order, until the broker has them, and
@@ -33,16 +38,22 @@ from pydantic import BaseModel
 
 from coffeebot.board import Subscription
 from coffeebot.config import RobotConfig
+from coffeebot.fleet.camera_link import BATCH_S, CameraLink
 from coffeebot.fleet.client import fleet_session
 from coffeebot.fleet.mosquitto import Credentials
 from coffeebot.fleet.protocol import (
+    CAMERA_LAYER_TOPIC,
+    CAMERAS_TO_ROBOT,
     DISPATCHER_TO_ROBOT,
     QOS,
     Ack,
     ActionKind,
     Assignment,
     BadMessage,
+    CameraFixReport,
+    CameraLayerReport,
     DeliveryReport,
+    FleetClock,
     FleetMessage,
     InstantAction,
     LeaseGrant,
@@ -51,11 +62,14 @@ from coffeebot.fleet.protocol import (
     Traffic,
     decode,
     encode,
+    fleet_offset,
     parse_robot_topic,
     robot_topic,
 )
 from coffeebot.logs import Event, Transitions
 from coffeebot.messages import (
+    CAMERA_FIX,
+    CAMERA_LAYER,
     COLLISION,
     CURRENT_STATE,
     DELIVERY_STATUS,
@@ -64,6 +78,7 @@ from coffeebot.messages import (
     LEASE_NEED,
     LEASE_STATE,
     MOTION_STATUS,
+    ODOMETRY,
     OPERATOR_EVENT,
     ORDER_DISPATCH,
     TRAFFIC,
@@ -78,6 +93,7 @@ from coffeebot.messages import (
     OperatorKind,
     OrderDispatch,
     OtherRobot,
+    PoseEstimate,
     SafetyState,
     SharedPlace,
 )
@@ -126,13 +142,41 @@ class BridgeCounters:
 
 class FleetBridge(Module):
     name = "fleet"
-    inputs = (DELIVERY_STATUS, CURRENT_STATE, MOTION_STATUS, COLLISION, HEALTH, ESTOP, LEASE_NEED)
-    outputs = (ORDER_DISPATCH, OPERATOR_EVENT, ESTOP, LEASE_STATE, HEALTH, TRAFFIC)
+    inputs = (
+        DELIVERY_STATUS,
+        CURRENT_STATE,
+        MOTION_STATUS,
+        COLLISION,
+        HEALTH,
+        ESTOP,
+        LEASE_NEED,
+        ODOMETRY,
+    )
+    outputs = (
+        ORDER_DISPATCH,
+        OPERATOR_EVENT,
+        ESTOP,
+        LEASE_STATE,
+        HEALTH,
+        TRAFFIC,
+        CAMERA_FIX,
+        CAMERA_LAYER,
+    )
 
-    def __init__(self, config: RobotConfig, credentials: Credentials | None = None) -> None:
+    def __init__(
+        self,
+        config: RobotConfig,
+        credentials: Credentials | None = None,
+        fleet_clock: FleetClock = time.time,
+    ) -> None:
+        """``fleet_clock``: the fleet's shared time base (the simulated clock when one
+        process simulates the whole fleet)."""
         self.robot = config.robot_id
         self.cfg = config.fleet
         self.credentials = credentials or credentials_from_env(self.robot)
+        self.fleet_clock = fleet_clock
+        self.cameras = CameraLink(config) if config.cameras.enabled else None
+        self._from_broker = DISPATCHER_TO_ROBOT | (CAMERAS_TO_ROBOT if self.cameras else {})
         self.counters = BridgeCounters()
         self._outbox: deque[DeliveryReport] = deque()
         self._sent = asyncio.Event()
@@ -165,6 +209,8 @@ class FleetBridge(Module):
                 group.create_task(self._keep(needs, lambda need: self._need(ctx, need)))
                 group.create_task(self._keep(health, self._note_health))
                 group.create_task(self._lease_watch(ctx))
+                if self.cameras is not None:
+                    group.create_task(self._keep_path(ctx, self.cameras))
                 await self._connect_forever(ctx)
 
     @staticmethod
@@ -191,12 +237,17 @@ class FleetBridge(Module):
                         group.create_task(self._report_state(ctx, client))
                         group.create_task(self._send_reports(client))
                         group.create_task(self._renew_leases(ctx, client))
+                        if self.cameras is not None:
+                            group.create_task(self._send_odometry(ctx, client, self.cameras))
             except* aiomqtt.MqttError as errors:
                 self._offline(ctx, str(errors.exceptions[0]))
             await ctx.clock.sleep(backoff.next_delay())
 
     async def _online(self, ctx: ModuleContext, client: aiomqtt.Client) -> None:
-        await client.subscribe([(self.topic(kind), 1) for kind in DISPATCHER_TO_ROBOT])
+        topics = [(self.topic(kind), QOS.get(kind, 1)) for kind in self._from_broker]
+        if self.cameras is not None:
+            topics.append((CAMERA_LAYER_TOPIC, QOS["camera_layer"]))
+        await client.subscribe(topics)
         self._client = client
         self._offline_since = None
         self.counters.connects += 1
@@ -252,11 +303,10 @@ class FleetBridge(Module):
     def state(self, ctx: ModuleContext) -> RobotState:
         """What the dispatcher and the fleet's map need to know of this robot now."""
         board = ctx.board
-        current = board.latest(CURRENT_STATE)
         motion = board.latest(MOTION_STATUS)
         verdict = board.latest(COLLISION)
         estop = board.latest(ESTOP)
-        pose = None if current is None or not current.msg.pose.initialised else current.msg.pose
+        pose = self._pose(ctx)
         unwell = sorted(
             f"{h.module}{'/' + h.component if h.component else ''}: {h.status.value}"
             for h in self._health.values()
@@ -280,12 +330,35 @@ class FleetBridge(Module):
             estop=estop is not None and estop.msg.engaged,
         )
 
+    @staticmethod
+    def _pose(ctx: ModuleContext) -> PoseEstimate | None:
+        """The state module's estimate, once it has one."""
+        current = ctx.board.latest(CURRENT_STATE)
+        return None if current is None or not current.msg.pose.initialised else current.msg.pose
+
     async def _report_state(self, ctx: ModuleContext, client: aiomqtt.Client) -> None:
         period = 1.0 / self.cfg.state_hz
         while True:
             report = self.state(ctx)
             await client.publish(self.topic("state"), encode(report), qos=QOS.get("state", 1))
             await ctx.clock.sleep(period)
+
+    async def _keep_path(self, ctx: ModuleContext, cameras: CameraLink) -> None:
+        with ctx.board.subscribe(ODOMETRY) as odometry:
+            async for envelope in odometry:
+                cameras.take(envelope.msg, envelope.stamp)
+
+    async def _send_odometry(
+        self, ctx: ModuleContext, client: aiomqtt.Client, cameras: CameraLink
+    ) -> None:
+        """The path to the camera service every ``BATCH_S``, with the robot's estimate."""
+        while True:
+            pose = self._pose(ctx)
+            at = None if pose is None else (pose.floor, pose.x_mm, pose.y_mm)
+            batch = cameras.batch(fleet_offset(ctx.clock, self.fleet_clock), at)
+            if batch is not None:
+                await client.publish(self.topic("odometry"), encode(batch), qos=QOS["odometry"])
+            await ctx.clock.sleep(BATCH_S)
 
     # --- in -----------------------------------------------------------------------------------
 
@@ -294,10 +367,7 @@ class FleetBridge(Module):
             self.counters.received += 1
             topic = str(message.topic)
             try:
-                robot, kind = parse_robot_topic(topic)
-                model = DISPATCHER_TO_ROBOT.get(kind)
-                if robot != self.robot or model is None:
-                    raise BadMessage(f"{topic}: not a message for {self.robot}")
+                model = self._model(topic)
                 payload = message.payload
                 if not isinstance(payload, bytes | bytearray):
                     raise BadMessage(f"{topic}: payload is not bytes")
@@ -312,6 +382,17 @@ class FleetBridge(Module):
             if ack is not None:
                 await client.publish(self.topic("ack"), encode(ack), qos=1)
 
+    def _model(self, topic: str) -> type[FleetMessage]:
+        """What a message on ``topic`` must be, or :class:`BadMessage` if it is not this
+        robot's to take."""
+        if topic == CAMERA_LAYER_TOPIC and self.cameras is not None:
+            return CameraLayerReport
+        robot, kind = parse_robot_topic(topic)
+        model = self._from_broker.get(kind)
+        if robot != self.robot or model is None:
+            raise BadMessage(f"{topic}: not a message for {self.robot}")
+        return model
+
     def _take(self, ctx: ModuleContext, message: FleetMessage) -> Ack | None:
         if isinstance(message, Assignment):
             return self._assigned(ctx, message)
@@ -322,7 +403,25 @@ class FleetBridge(Module):
         if isinstance(message, Traffic):
             others = [OtherRobot(**robot.model_dump()) for robot in message.robots]
             ctx.board.publish(TRAFFIC, BoardTraffic(robots=others))
+        if isinstance(message, CameraFixReport | CameraLayerReport):
+            self._camera_message(ctx, message)
         return None
+
+    def _camera_message(
+        self, ctx: ModuleContext, message: CameraFixReport | CameraLayerReport
+    ) -> None:
+        """A fix carried on to now, the layer onto the board's clock: onto the board, as the
+        cameras module would publish them (what is too old to use is dropped)."""
+        assert self.cameras is not None  # subscribed to only with the cameras on
+        offset = fleet_offset(ctx.clock, self.fleet_clock)
+        if isinstance(message, CameraFixReport):
+            fix = self.cameras.fix(message, offset)
+            if fix is not None:
+                ctx.board.publish(CAMERA_FIX, fix)
+        else:
+            layer = self.cameras.layer(message, offset, ctx.clock.now())
+            if layer is not None:
+                ctx.board.publish(CAMERA_LAYER, layer)
 
     def _assigned(self, ctx: ModuleContext, assignment: Assignment) -> Ack:
         ref, order = assignment.assignment_id, assignment.order_id

@@ -9,6 +9,7 @@ board's clock.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -18,6 +19,7 @@ from coffeebot.clock import Clock
 from coffeebot.config import RobotConfig
 from coffeebot.daemon import Daemon
 from coffeebot.fleet.mosquitto import Credentials
+from coffeebot.fleet.protocol import FleetClock
 from coffeebot.floorplan import FloorPlan
 from coffeebot.hardware.i2c import I2CBus
 from coffeebot.hardware.selfcheck import service_check
@@ -120,6 +122,7 @@ def assemble(
     extra: ExtraModules | None = None,
     web: bool = True,
     broker_login: Credentials | None = None,
+    fleet_clock: FleetClock = time.time,
     cameras: Mapping[str, FrameSource] | None = None,
 ) -> Runtime:
     """Build the board and every module from ``config`` and ``plan``.
@@ -127,24 +130,27 @@ def assemble(
     ``store``: the order database (the caller opens it: on the robot the board file's path,
     in simulation a temporary one). In a fleet (``[fleet] broker``) there is none: the fleet
     bridge takes the orders module's place, logging in with ``broker_login`` (default: the
-    environment's), and the web UI is the dispatcher's. ``open_serial``: opens the serial
-    ports by their names in the config (pyserial on the robot, the simulated lines in
-    simulation);
+    environment's), with ``fleet_clock`` the fleet's shared time base (the simulated clock
+    when one process simulates the fleet), and the web UI is the dispatcher's.
+    ``open_serial``: opens the serial ports by their names in the config (pyserial on the
+    robot, the simulated lines in simulation);
     ``kernel_hz``: the I2C bus clock the kernel runs, for the self-check (a real bus only);
     ``elevator``: the building's elevator, if the robot can talk to it; ``true_pose``: a pose
     the live map draws beside the estimate (the simulator's truth); ``web``: serve the UI;
     ``cameras``: the ceiling cameras' frames by camera id, with ``[cameras] enabled`` (default:
-    the streams the config names; the simulator passes its renderings).
+    the streams the config names; the simulator passes its renderings). A robot in a fleet
+    watches none: the dispatcher's camera service does, and its fleet bridge sends the
+    odometry and takes the fixes.
     """
     board = Board(ALL_TOPICS, clock=clock)
     modules = robot_modules(config, plan, open_i2c, open_serial, start)
     modules += navigation_modules(config, plan, elevator)
-    if config.cameras.enabled:
+    if config.cameras.enabled and not config.fleet.enabled:
         sources = stream_sources(config.cameras.streams, plan) if cameras is None else cameras
         modules.append(CameraModule(config, plan, sources))
     orders: OrdersModule | None = None
     if config.fleet.enabled:
-        modules.append(FleetBridge(config, broker_login))
+        modules.append(FleetBridge(config, broker_login, fleet_clock))
     elif store is None:
         raise ValueError("a robot outside a fleet keeps its own orders: give it a store")
     else:

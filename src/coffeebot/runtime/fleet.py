@@ -2,17 +2,20 @@
 in one simulated building, all talking over an MQTT broker.
 
 The dispatcher (``coffeebot fleet``) is a daemon of its own: a board, the dispatcher module
-(orders, assignment, leases, the broker connection) and the same web app a single robot
-serves, given the dispatcher as its orders and the fleet's robots as its map. Each robot is
+(orders, assignment, leases, the broker connection), with ``[cameras] enabled`` the fleet's
+camera service (every robot's fixes and the map's camera layer), and the same web app a
+single robot serves, given the dispatcher as its orders and the fleet's robots as its map.
+Each robot is
 the very assembly a single robot runs (:func:`~coffeebot.runtime.assemble.assemble`) with
 ``[fleet] broker`` set: the fleet bridge takes the orders module's place.
 
 :func:`build_fleet_sim` co-hosts everything in one process, as the demo, the tests and the
 benchmark need: one simulated world holding every robot (each one's sensors see the others),
 each robot with its own simulated buses and its own whole daemon (board, modules, safety
-loop), as each would run on its own Pi, and the dispatcher; one simulated clock for all, in
-lockstep with all their worker threads. Only the broker is outside: they reach each other
-through it alone.
+loop), as each would run on its own Pi, and the dispatcher (with the cameras on, the camera
+service watching the simulated ceiling cameras); one simulated clock for all, in lockstep
+with all their worker threads, and the fleet's shared time base. Only the broker is
+outside: they reach each other through it alone.
 """
 
 from __future__ import annotations
@@ -21,25 +24,30 @@ import asyncio
 import contextlib
 import functools
 import logging
+import time
 from collections.abc import AsyncIterator, Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from coffeebot.board import Board
+from coffeebot.cameras.sources import FrameSource, stream_sources
 from coffeebot.clock import Clock, SteppedClock
 from coffeebot.config import RobotConfig
 from coffeebot.daemon import Daemon
 from coffeebot.errors import ConfigError
+from coffeebot.fleet.camera_service import CameraServiceModule
 from coffeebot.fleet.dispatcher import Announce, Dispatcher
 from coffeebot.fleet.estimates import TravelTimes
 from coffeebot.fleet.module import DispatcherModule, Send
 from coffeebot.fleet.mosquitto import DISPATCHER_USER, BrokerAddress, Credentials
+from coffeebot.fleet.protocol import FleetClock
 from coffeebot.floorplan import FloorPlan
 from coffeebot.logs import ROBOT
 from coffeebot.messages import ALL_TOPICS, FLEET, PoseEstimate
 from coffeebot.modules.base import Module
 from coffeebot.runtime.assemble import Runtime, assemble
 from coffeebot.runtime.web import web_module
+from coffeebot.sim.cameras import sim_cameras
 from coffeebot.sim.rundir import run_directory
 from coffeebot.sim.simulation import SimElevatorLink, Simulation
 from coffeebot.sim.stepper import SimWorld
@@ -102,10 +110,13 @@ def dispatcher_runtime(
     *,
     web: bool = True,
     extra: Sequence[Module] = (),
+    cameras: Mapping[str, FrameSource] | None = None,
+    fleet_clock: FleetClock = time.time,
 ) -> DispatcherRuntime:
     """The dispatcher's daemon: ``config`` is the fleet's robots' description (their pace on
-    routes, the web's settings, ``[fleet.dispatch]``); ``extra``: modules beside it (the
-    simulated staff)."""
+    routes, the web's settings, ``[fleet.dispatch]``, ``[cameras]``); ``extra``: modules
+    beside it (the simulated staff). With ``[cameras] enabled`` the camera service watches
+    ``cameras`` (default: the streams the config names), its times on ``fleet_clock``."""
     board = Board(ALL_TOPICS, clock=clock)
     travel = TravelTimes(plan, config, Pace(pickup_timeout_s=config.navigation.pickup_timeout_s))
 
@@ -115,6 +126,9 @@ def dispatcher_runtime(
     module = DispatcherModule(broker, login, make, store)
     runtime = DispatcherRuntime(board, module, store)
     modules: list[Module] = [module, *extra]
+    if config.cameras.enabled:
+        sources = stream_sources(config.cameras.streams, plan) if cameras is None else cameras
+        modules.append(CameraServiceModule(config, plan, sources, broker, login, fleet_clock))
     if web:
         # The dispatcher's board carries no robot's sensors: only its own view must keep coming.
         own = config.web.model_copy(update={"stale_after_s": {FLEET.name: STALE_VIEW_S}})
@@ -230,6 +244,7 @@ async def build_fleet_sim(
                     elevator=SimElevatorLink(sim),
                     web=False,
                     broker_login=logins[robot],
+                    fleet_clock=clock.now,
                     extra=None
                     if robot_extra is None
                     else functools.partial(lambda name, _: robot_extra(name), robot),
@@ -245,6 +260,10 @@ async def build_fleet_sim(
             clock,
             web=web,
             extra=dispatcher_extra,
+            cameras=sim_cameras(world, plan, shared.world_time, seed=seed)
+            if config.cameras.enabled
+            else None,
+            fleet_clock=clock.now,
         )
         shared.start()
         try:
