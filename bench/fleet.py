@@ -102,6 +102,8 @@ class Case:
     minutes: float
     seed: int
     broker_kill: bool = False
+    cameras: bool = False
+    """The building's ceiling cameras on: the dispatcher's camera service for every robot."""
 
 
 @dataclass
@@ -283,7 +285,8 @@ async def run_case(case: Case) -> dict[str, Any]:
     fleet_config = BOARD.fleet.model_copy(
         update={"dispatch": BOARD.fleet.dispatch.model_copy(update={"strategy": case.strategy})}
     )
-    config: RobotConfig = BOARD.model_copy(update={"fleet": fleet_config})
+    cameras = BOARD.cameras.model_copy(update={"enabled": case.cameras})
+    config: RobotConfig = BOARD.model_copy(update={"fleet": fleet_config, "cameras": cameras})
     names = robot_ids(case.robots)
     staff = StaffModule(STAFF)
     probes = {name: Probe() for name in names}
@@ -415,19 +418,22 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--workers", type=int, default=1, help="cases at once, a process each")
     parser.add_argument("--no-broker-kill", action="store_true")
+    parser.add_argument(
+        "--cameras", action="store_true", help="the ceiling cameras on, for every case"
+    )
     parser.add_argument("--json", action="store_true")
     parser.add_argument("--save", type=Path, help="every run's figures, as JSON")
     parser.add_argument("--logs", type=Path, metavar="DIR", help="each case's log, INFO and up")
     args = parser.parse_args(argv)
     cases = [
-        Case(robots, rate, strategy, args.minutes, args.seed)
+        Case(robots, rate, strategy, args.minutes, args.seed, cameras=args.cameras)
         for robots in args.robots
         for rate in args.rates
         for strategy in ("joint", "greedy")
         if strategy == "joint" or (rate in args.greedy_rates and robots in args.greedy_robots)
     ]
     if not args.no_broker_kill:
-        cases.append(Case(3, KILL_PER_H, "joint", args.minutes / 2, args.seed, True))
+        cases.append(Case(3, KILL_PER_H, "joint", args.minutes / 2, args.seed, True, args.cameras))
     # The longest first, so two workers end together.
     order = sorted(range(len(cases)), key=lambda i: -cases[i].robots * cases[i].minutes)
     started = time.monotonic()
