@@ -45,11 +45,10 @@ from coffeebot.fleet.protocol import (
     FleetClock,
     FleetMessage,
     OdometryBatch,
-    decode,
     encode,
     fleet_offset,
     layer_shifted,
-    parse_robot_topic,
+    robot_report,
     robot_topic,
 )
 from coffeebot.floorplan import FloorPlan
@@ -202,13 +201,7 @@ class CameraServiceModule(Module):
         async for message in client.messages:
             topic = str(message.topic)
             try:
-                robot, kind = parse_robot_topic(topic)
-                if kind not in ROBOT_TO_CAMERAS:
-                    raise BadMessage(f"{topic}: not for the camera service")
-                payload = message.payload
-                if not isinstance(payload, bytes | bytearray):
-                    raise BadMessage(f"{topic}: payload is not bytes")
-                batch = decode(OdometryBatch, topic, bytes(payload))
+                robot, batch = robot_report(topic, message.payload, ROBOT_TO_CAMERAS)
             except BadMessage as exc:
                 self.refused += 1
                 ctx.log.warning(

@@ -32,9 +32,8 @@ from coffeebot.fleet.protocol import (
     FleetMessage,
     LeaseRequest,
     RobotState,
-    decode,
     encode,
-    parse_robot_topic,
+    robot_report,
     robot_topic,
 )
 from coffeebot.logs import Event, Transitions
@@ -235,14 +234,7 @@ class DispatcherModule(Module):
         async for message in client.messages:
             topic = str(message.topic)
             try:
-                robot, kind = parse_robot_topic(topic)
-                model = ROBOT_TO_DISPATCHER.get(kind)
-                if model is None:
-                    raise BadMessage(f"{topic}: no such report")
-                payload = message.payload
-                if not isinstance(payload, bytes | bytearray):
-                    raise BadMessage(f"{topic}: payload is not bytes")
-                decoded = decode(model, topic, bytes(payload))
+                robot, decoded = robot_report(topic, message.payload, ROBOT_TO_DISPATCHER)
             except BadMessage as exc:
                 self.refused += 1
                 ctx.log.warning(

@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import itertools
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from enum import StrEnum
 from typing import Annotated, Literal, TypeVar
 
@@ -271,7 +271,7 @@ DISPATCHER_TO_ROBOT: dict[str, type[FleetMessage]] = {
     "grant": LeaseGrant,
     "traffic": Traffic,
 }
-ROBOT_TO_CAMERAS: dict[str, type[FleetMessage]] = {"odometry": OdometryBatch}
+ROBOT_TO_CAMERAS: dict[str, type[OdometryBatch]] = {"odometry": OdometryBatch}
 CAMERAS_TO_ROBOT: dict[str, type[FleetMessage]] = {"camera_fix": CameraFixReport}
 CAMERA_LAYER_TOPIC = f"{ROOT}/cameras/layer"
 """Every robot's, retained: a robot that (re)connects has it at once."""
@@ -311,14 +311,27 @@ def parse_robot_topic(topic: str) -> tuple[str, str]:
     return robot, kind
 
 
-def decode(model: type[M], topic: str, payload: bytes) -> M:
-    """The payload as ``model``, or :class:`BadMessage` saying what is wrong with it."""
+def decode(model: type[M], topic: str, payload: object) -> M:
+    """The payload as ``model``, or :class:`BadMessage` saying what is wrong with it (the
+    broker hands over whatever a client sent: bytes, or nothing)."""
+    if not isinstance(payload, bytes | bytearray):
+        raise BadMessage(f"{topic}: payload is not bytes")
     try:
-        return model.model_validate_json(payload)
+        return model.model_validate_json(bytes(payload))
     except ValidationError as exc:
         first = exc.errors()[0]
         where = ".".join(str(p) for p in first["loc"]) or "payload"
         raise BadMessage(f"{topic}: {where}: {first['msg']}") from None
+
+
+def robot_report(topic: str, payload: object, reports: Mapping[str, type[M]]) -> tuple[str, M]:
+    """(robot, message) of what a robot sent on a topic of one of the ``reports`` kinds, or
+    :class:`BadMessage` saying what is wrong."""
+    robot, kind = parse_robot_topic(topic)
+    model = reports.get(kind)
+    if model is None:
+        raise BadMessage(f"{topic}: no such report")
+    return robot, decode(model, topic, payload)
 
 
 def encode(message: FleetMessage) -> bytes:

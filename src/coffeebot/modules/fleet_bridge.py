@@ -367,11 +367,7 @@ class FleetBridge(Module):
             self.counters.received += 1
             topic = str(message.topic)
             try:
-                model = self._model(topic)
-                payload = message.payload
-                if not isinstance(payload, bytes | bytearray):
-                    raise BadMessage(f"{topic}: payload is not bytes")
-                decoded = decode(model, topic, bytes(payload))
+                decoded = decode(self._model(topic), topic, message.payload)
             except BadMessage as exc:
                 self.counters.refused += 1
                 ctx.log.warning(
