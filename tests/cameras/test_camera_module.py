@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from camera_fakes import BareFloor
 from coffeebot.board import Board
 from coffeebot.clock import MonotonicClock
 from coffeebot.config import load_robot_config
@@ -25,21 +26,6 @@ BASE = load_robot_config(ROOT / "boards" / "coffeebot-v1.toml")
 CONFIG = BASE.model_copy(
     update={"cameras": BASE.cameras.model_copy(update={"enabled": True, "out_after_s": 0.3})}
 )
-
-
-class FloorSource:
-    """Bare floor with a little noise."""
-
-    def __init__(self, camera: Camera) -> None:
-        self.camera = camera
-        self._rng = np.random.default_rng(1)
-
-    def grab(self, t_s: float) -> np.ndarray | None:
-        shape = (self.camera.height_px, self.camera.width_px)
-        return np.clip(120 + 3 * self._rng.standard_normal(shape), 0, 255).astype(np.uint8)
-
-    def close(self) -> None:
-        """Nothing to release."""
 
 
 class DeadSource:
@@ -64,7 +50,7 @@ async def test_a_camera_without_frames_is_reported_out_with_its_reason_and_logge
     module = CameraModule(
         CONFIG,
         PLAN,
-        {"lobby-2": FloorSource(CAMERAS["lobby-2"]), "tea-room": DeadSource(CAMERAS["tea-room"])},
+        {"lobby-2": BareFloor(CAMERAS["lobby-2"]), "tea-room": DeadSource(CAMERAS["tea-room"])},
     )
     log = logging.getLogger("coffeebot.module.cameras")
     ctx = ModuleContext(ModuleBoard(board, module), board.clock, log)
@@ -94,4 +80,4 @@ async def test_a_camera_without_frames_is_reported_out_with_its_reason_and_logge
 def test_a_source_for_a_camera_the_plan_does_not_have_is_refused() -> None:
     stray = Camera(id="garage", x_mm=0.0, y_mm=0.0)
     with pytest.raises(ValueError, match="no camera garage in the floor plan"):
-        CameraModule(CONFIG, PLAN, {"garage": FloorSource(stray)})
+        CameraModule(CONFIG, PLAN, {"garage": BareFloor(stray)})

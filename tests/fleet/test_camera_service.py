@@ -16,6 +16,7 @@ import aiomqtt
 import numpy as np
 import pytest
 
+from camera_fakes import BareFloor
 from coffeebot.board import Board
 from coffeebot.clock import MonotonicClock
 from coffeebot.config import FleetConfig, RobotConfig, load_robot_config
@@ -34,7 +35,7 @@ from coffeebot.fleet.protocol import (
     encode,
     robot_topic,
 )
-from coffeebot.floorplan import Camera, load_floorplan
+from coffeebot.floorplan import load_floorplan
 from coffeebot.messages import (
     ALL_TOPICS,
     CAMERA_FIX,
@@ -201,21 +202,6 @@ async def test_a_robot_reads_only_its_own_fixes_and_the_layer(broker: Mosquitto)
 
 
 # --- a robot's bridge and the camera service --------------------------------------------------
-
-
-class BareFloor:
-    """A camera that sees bare floor with a little noise."""
-
-    def __init__(self, camera: Camera) -> None:
-        self.camera = camera
-        self._rng = np.random.default_rng(1)
-
-    def grab(self, t_s: float) -> np.ndarray | None:
-        shape = (self.camera.height_px, self.camera.width_px)
-        return np.clip(120 + 3 * self._rng.standard_normal(shape), 0, 255).astype(np.uint8)
-
-    def close(self) -> None:
-        """Nothing to release."""
 
 
 class StraightDrive(Module):

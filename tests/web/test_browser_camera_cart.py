@@ -9,11 +9,9 @@ cameras' fields, the cart and the robot held short of it. The screenshots are th
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import os
 import re
 from collections.abc import AsyncIterator
-from dataclasses import dataclass
 from pathlib import Path
 
 import playwright.async_api as playwright
@@ -22,14 +20,10 @@ import pytest_asyncio
 
 from coffeebot.config import load_robot_config
 from coffeebot.messages import DELIVERY_STATUS, DeliveryProblem
-from coffeebot.runtime.assemble import Runtime
-from coffeebot.runtime.service import serve
-from coffeebot.runtime.sim import build_sim
 from coffeebot.scenario.spec import load_scenario
-from coffeebot.sim.simulation import Simulation
-from coffeebot.web import WebModule
 
-from .test_browser import BOARD_FILE, CHROMIUM, CHROMIUM_ARGS, DESKTOP, PHONE, SCREENSHOTS
+from .sim_browser import SimInBrowser, sim_in_browser
+from .test_browser import BOARD_FILE, DESKTOP, PHONE, SCREENSHOTS
 
 pytestmark = pytest.mark.asyncio(loop_scope="module")
 
@@ -38,59 +32,31 @@ SCENARIO, PLAN = load_scenario(ROOT / "scenarios" / "floor2-cart-seen-by-camera.
 TOKEN = "sim-operator-token"
 
 
-@dataclass
-class Demo:
-    url: str
-    runtime: Runtime
-    sim: Simulation
-    browser: playwright.Browser
-
-    def standing_at_s(self) -> float | None:
-        """Where along the hallway the robot stands still (None while it moves)."""
-        with self.sim.lock:
-            robot = self.sim.robot
-            moving = abs(robot.body.state.speed_mm_s) > 1.0
-            x_mm = robot.pose.x_mm
-        return None if moving else x_mm
-
-    async def page(self, viewport: dict[str, int]) -> playwright.Page:
-        context = await self.browser.new_context(viewport=viewport)  # type: ignore[arg-type]
-        page = await context.new_page()
-        page.set_default_timeout(60_000)
-        return page
+def standing_at_x(demo: SimInBrowser) -> float | None:
+    """Where along the hallway the robot stands still (None while it moves)."""
+    with demo.sim.lock:
+        robot = demo.sim.robot
+        moving = abs(robot.body.state.speed_mm_s) > 1.0
+        x_mm = robot.pose.x_mm
+    return None if moving else x_mm
 
 
 @pytest_asyncio.fixture(scope="module", loop_scope="module")
-async def demo() -> AsyncIterator[Demo]:
+async def demo() -> AsyncIterator[SimInBrowser]:
     config = SCENARIO.configure(load_robot_config(BOARD_FILE))
-    config = config.model_copy(
-        update={"web": config.web.model_copy(update={"host": "127.0.0.1", "port": 0})}
-    )
     # The scenario's world (its start, the cart, the cameras); the orders come from the form.
-    setup = SCENARIO.setup(speed=2.0)
     with pytest.MonkeyPatch.context() as env:
         env.setenv(config.web.operator_token_env, TOKEN)
-        async with build_sim(config, PLAN, setup) as (runtime, sim):
-            serving = asyncio.create_task(serve(runtime))
-            web = runtime.module("web")
-            assert isinstance(web, WebModule)
-            await asyncio.wait_for(web.started.wait(), 30)
-            assert web.url is not None
-            async with playwright.async_playwright() as p:
-                browser = await p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
-                yield Demo(web.url, runtime, sim, browser)
-                await browser.close()
-            runtime.request_stop("test over")
-            with contextlib.suppress(asyncio.CancelledError):
-                await asyncio.wait_for(serving, 30)
+        async with sim_in_browser(config, PLAN, SCENARIO.setup(speed=2.0)) as demo:
+            yield demo
 
 
 async def test_the_customer_and_the_inspector_see_the_robot_wait_for_a_cart_a_camera_saw(
-    demo: Demo,
+    demo: SimInBrowser,
 ) -> None:
     expect = playwright.expect
     held = demo.runtime.board.subscribe(DELIVERY_STATUS)
-    customer = await demo.page(PHONE)
+    customer = await demo.page(PHONE, timeout_ms=60_000)
     await customer.goto(demo.url + "/")
     await customer.select_option("select[name=drink]", "latte")
     await customer.fill("input[name=name]", "Grace")
@@ -99,7 +65,7 @@ async def test_the_customer_and_the_inspector_see_the_robot_wait_for_a_cart_a_ca
     await expect(customer.locator("#detail")).to_have_text(
         "The robot is in the tea room; staff are putting your latte on it."
     )
-    inspector = await demo.page(DESKTOP)
+    inspector = await demo.page(DESKTOP, timeout_ms=60_000)
     await inspector.goto(demo.url + "/inspect")
     await inspector.fill("#token", TOKEN)
     await inspector.dispatch_event("#token", "change")
@@ -117,7 +83,7 @@ async def test_the_customer_and_the_inspector_see_the_robot_wait_for_a_cart_a_ca
     # It drives on to where it holds, short of the cart, and stands there.
     (cart_spec,) = SCENARIO.obstacles
     async with asyncio.timeout(120):
-        while (at := demo.standing_at_s()) is None or at > 30_000:
+        while (at := standing_at_x(demo)) is None or at > 30_000:
             await asyncio.sleep(0.1)
     assert at - cart_spec.x_mm > 1500.0
     await expect(customer.locator("#status-text")).to_have_text("On the way")

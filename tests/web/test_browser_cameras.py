@@ -9,12 +9,9 @@ on desktop and on a phone, and the robot stays on top of them.
 
 from __future__ import annotations
 
-import asyncio
-import contextlib
 import os
 import re
 from collections.abc import AsyncIterator, Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -27,16 +24,12 @@ from coffeebot.config import load_robot_config
 from coffeebot.floorplan import Camera
 from coffeebot.messages import CAMERA_LAYER, CameraLayer, CameraObject, CameraView
 from coffeebot.modules.base import Module, ModuleContext
-from coffeebot.runtime.service import serve
-from coffeebot.runtime.sim import build_sim
 from coffeebot.sim.simulation import demo_setup
-from coffeebot.web import WebModule
 from coffeebot.web.livemap import MapPose
 
+from .sim_browser import SimInBrowser, sim_in_browser
 from .test_browser import (
     BOARD_FILE,
-    CHROMIUM,
-    CHROMIUM_ARGS,
     DESKTOP,
     PHONE,
     PLAN,
@@ -100,38 +93,12 @@ class CameraProbe(Module):
             await ctx.clock.sleep(1.0)
 
 
-@dataclass
-class Demo:
-    url: str
-    browser: playwright.Browser
-
-    async def page(self, viewport: dict[str, int]) -> playwright.Page:
-        context = await self.browser.new_context(viewport=viewport)  # type: ignore[arg-type]
-        page = await context.new_page()
-        page.set_default_timeout(30_000)
-        return page
-
-
 @pytest_asyncio.fixture(scope="module", loop_scope="module")
-async def demo() -> AsyncIterator[Demo]:
+async def demo() -> AsyncIterator[SimInBrowser]:
     config = load_robot_config(BOARD_FILE)
-    config = config.model_copy(
-        update={"web": config.web.model_copy(update={"host": "127.0.0.1", "port": 0})}
-    )
     setup = demo_setup(PLAN, speed=2.0)
-    async with build_sim(config, PLAN, setup, extra=lambda *_: [CameraProbe()]) as (runtime, _):
-        serving = asyncio.create_task(serve(runtime))
-        web = runtime.module("web")
-        assert isinstance(web, WebModule)
-        await asyncio.wait_for(web.started.wait(), 30)
-        assert web.url is not None
-        async with playwright.async_playwright() as p:
-            browser = await p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
-            yield Demo(web.url, browser)
-            await browser.close()
-        runtime.request_stop("test over")
-        with contextlib.suppress(asyncio.CancelledError):
-            await asyncio.wait_for(serving, 30)
+    async with sim_in_browser(config, PLAN, setup, lambda *_: [CameraProbe()]) as demo:
+        yield demo
 
 
 BOXES = """() => {
@@ -184,7 +151,9 @@ def centre(corners: Sequence[tuple[float, float]]) -> MapPose:
     )
 
 
-async def test_the_cameras_fields_and_what_they_see_standing_are_on_the_map(demo: Demo) -> None:
+async def test_the_cameras_fields_and_what_they_see_standing_are_on_the_map(
+    demo: SimInBrowser,
+) -> None:
     page = await demo.page(DESKTOP)
     await page.goto(demo.url + "/inspect")
     at = await camera_layer_drawn(page)
@@ -226,7 +195,7 @@ async def expect_whole_floor(page: playwright.Page) -> None:
 
 
 async def test_on_a_phone_the_camera_layer_is_legible_and_leaves_the_robot_visible(
-    demo: Demo,
+    demo: SimInBrowser,
 ) -> None:
     page = await demo.page(PHONE)
     await page.goto(demo.url + "/inspect")

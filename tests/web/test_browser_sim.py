@@ -9,29 +9,22 @@ is. The screenshots are the README's (``make screenshots``).
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import math
 import os
 import re
 from collections.abc import AsyncIterator
-from dataclasses import dataclass
 
 import playwright.async_api as playwright
 import pytest
 import pytest_asyncio
 
 from coffeebot.config import load_robot_config
-from coffeebot.runtime.assemble import Runtime
-from coffeebot.runtime.service import serve
-from coffeebot.runtime.sim import build_sim
-from coffeebot.sim.simulation import Simulation, demo_setup
-from coffeebot.web import WebModule
+from coffeebot.sim.simulation import demo_setup
 from coffeebot.web.livemap import MapPose
 
+from .sim_browser import SimInBrowser, sim_in_browser
 from .test_browser import (
     BOARD_FILE,
-    CHROMIUM,
-    CHROMIUM_ARGS,
     DESKTOP,
     PHONE,
     PLAN,
@@ -44,46 +37,13 @@ pytestmark = pytest.mark.asyncio(loop_scope="module")
 TOKEN = "sim-operator-token"
 
 
-@dataclass
-class Demo:
-    url: str
-    runtime: Runtime
-    sim: Simulation
-    browser: playwright.Browser
-
-    def true_pose(self) -> MapPose:
-        with self.sim.lock:
-            pose, floor = self.sim.robot.pose, self.sim.robot.floor_level
-        return MapPose(x_mm=pose.x_mm, y_mm=pose.y_mm, heading_deg=pose.heading_deg, floor=floor)
-
-    async def page(self, viewport: dict[str, int]) -> playwright.Page:
-        context = await self.browser.new_context(viewport=viewport)  # type: ignore[arg-type]
-        page = await context.new_page()
-        page.set_default_timeout(30_000)
-        return page
-
-
 @pytest_asyncio.fixture(scope="module", loop_scope="module")
-async def demo() -> AsyncIterator[Demo]:
+async def demo() -> AsyncIterator[SimInBrowser]:
     config = load_robot_config(BOARD_FILE)
-    config = config.model_copy(
-        update={"web": config.web.model_copy(update={"host": "127.0.0.1", "port": 0})}
-    )
     with pytest.MonkeyPatch.context() as env:
         env.setenv(config.web.operator_token_env, TOKEN)
-        async with build_sim(config, PLAN, demo_setup(PLAN, speed=2.0)) as (runtime, sim):
-            serving = asyncio.create_task(serve(runtime))
-            web = runtime.module("web")
-            assert isinstance(web, WebModule)
-            await asyncio.wait_for(web.started.wait(), 30)
-            assert web.url is not None
-            async with playwright.async_playwright() as p:
-                browser = await p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
-                yield Demo(web.url, runtime, sim, browser)
-                await browser.close()
-            runtime.request_stop("test over")
-            with contextlib.suppress(asyncio.CancelledError):
-                await asyncio.wait_for(serving, 30)
+        async with sim_in_browser(config, PLAN, demo_setup(PLAN, speed=2.0)) as demo:
+            yield demo
 
 
 async def until(check: object, what: str, timeout_s: float = 60.0) -> None:
@@ -103,7 +63,9 @@ def in_the_hallway(pose: MapPose, past_s_mm: float) -> bool:
     return pose.floor == 2 and s < past_s_mm and abs(d) < floor.hallway.width_mm / 2 - 300
 
 
-async def test_order_load_the_cup_and_watch_the_robot_drive_in_the_hallway(demo: Demo) -> None:
+async def test_order_load_the_cup_and_watch_the_robot_drive_in_the_hallway(
+    demo: SimInBrowser,
+) -> None:
     expect = playwright.expect
     customer = await demo.page(DESKTOP)
     await customer.goto(demo.url + "/")
