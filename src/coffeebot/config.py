@@ -296,6 +296,23 @@ class TrackingConfig(Section):
         le=SPEED_MM_S,
         description="faster over the ground is no one: readings jumping between things",
     )
+    turn_in_place_dps: float = Field(
+        10.0,
+        gt=0,
+        le=360,
+        description="turning on the spot at least this fast (and driving slower than "
+        "turn_in_place_speed_mm_s), the cones sweep along the walls and their returns slide "
+        "along them at up to 3 m/s, as nobody walks: nothing is tracked then, and what was "
+        "is dropped (its velocity is the sweep's). Turning on the spot, the robot drives "
+        "into nobody's way; the distance rules still stop it for what is near",
+    )
+    turn_in_place_speed_mm_s: float = Field(
+        100.0,
+        ge=0,
+        le=SPEED_MM_S,
+        description="slower than this while turning is turning on the spot (a DWA arc "
+        "drives faster and keeps its tracks)",
+    )
     max_sigma_mm: float = Field(
         150.0,
         gt=0,

@@ -195,3 +195,88 @@ def test_blends_and_impossible_speeds_are_no_movers() -> None:
         tracker.update(scan_of([(1500.0, -400.0 + 4000.0 * t)], t, walls=False), 0.0, 0.0)
     assert any(t.speed_mm_s > CONFIG.tracking.max_mover_speed_mm_s for t in tracker.tracks)
     assert tracker.movers() == []
+
+
+def hallway_scan(
+    heading_rad: float, t: float, person: tuple[float, float] | None = None
+) -> RangeScan:
+    """What each sensor reads (the nearest of five rays across its cone) of a 1700 mm hallway's
+    walls, the robot's centre 300 mm right of the axis, and of a person (a 200 mm disc) at a
+    robot-frame point."""
+    readings = []
+    for s in TOED_OUT:
+        sy = -300.0 + s.x_mm * math.sin(heading_rad) + s.y_mm * math.cos(heading_rad)
+        best: float | None = None
+        for k in range(5):
+            ray = math.radians(s.yaw_deg + (k - 2) * s.fov_deg / 4)  # in the robot's frame
+            dy = math.sin(heading_rad + ray)
+            for wall in (850.0, -850.0):
+                if abs(dy) > 1e-9 and (d := (wall - sy) / dy) > 0 and (best is None or d < best):
+                    best = d
+            if person is not None:
+                px, py = person[0] - s.x_mm, person[1] - s.y_mm
+                along = px * math.cos(ray) + py * math.sin(ray)
+                across = abs(-px * math.sin(ray) + py * math.cos(ray))
+                if along > 0 and across <= 100.0 and (best is None or along < best):
+                    best = along
+        valid = best is not None and best <= 4000.0
+        readings.append(
+            RangeReading(
+                sensor=s.id,
+                status=ReadingStatus.VALID if valid else ReadingStatus.SIGNAL_FAIL,
+                distance_mm=round(best) if valid and best is not None else None,
+            )
+        )
+    return RangeScan(cycle_start_s=t, cycle_time_s=DT, readings=readings)
+
+
+def half_turn_rates() -> list[float]:
+    """A half turn on the spot at 45 deg/s, half a second up to speed and down again."""
+    ramp = [45.0 * min(1.0, (i + 1) * DT / 0.5) for i in range(25)]
+    turned = 2 * sum(r * DT for r in ramp)
+    return ramp + [45.0] * round((180.0 - turned) / 45.0 / DT) + ramp[::-1]
+
+
+def test_a_half_turn_on_the_spot_sees_nobody_moving_in_an_empty_hallway() -> None:
+    """Issue 21's phantom: turning on the spot, the side cones sweep along the walls and
+    their returns slide along them at up to 3 m/s; tracked, they were "someone moving into
+    the way" during the turn and 1-3 m after it. Now nothing is tracked while the robot
+    turns on the spot, and the empty hallway stays empty as it drives off."""
+    monitor = CollisionMonitor(
+        TOED_OUT, CONFIG.collision, max_speed_mm_s=1000, tracking=CONFIG.tracking
+    )
+    heading, t, reasons = 0.0, 0.0, []
+    steps = [(rate, 0.0) for rate in half_turn_rates()]
+    steps += [(0.0, min(300.0, 600.0 * k * DT)) for k in range(150)]  # then 0.8 m at 300 mm/s
+    for seq, (rate, speed) in enumerate(steps, start=1):
+        status = monitor.update(hallway_scan(heading, t), speed, seq, yaw_rate_dps=rate)
+        reasons.append(status.reason)
+        heading += math.radians(rate) * DT
+        t += DT
+    assert not [r for r in reasons if "moving" in r]
+
+
+def test_someone_stepping_in_ahead_right_after_a_turn_is_seen_coming() -> None:
+    """The tracks dropped during the turn are no blindness after it: a person walking across
+    1.5 m ahead at 1.2 m/s as the robot drives off is a mover within a few scans."""
+    monitor = CollisionMonitor(
+        TOED_OUT, CONFIG.collision, max_speed_mm_s=1000, tracking=CONFIG.tracking
+    )
+    heading, t, seq = 0.0, 0.0, 0
+    for rate in half_turn_rates():
+        seq += 1
+        monitor.update(hallway_scan(heading, t), 0.0, seq, yaw_rate_dps=rate)
+        heading += math.radians(rate) * DT
+        t += DT
+    heading = math.pi  # where the turn's controller leaves it
+    seen_at = None
+    for k in range(40):
+        seq += 1
+        person = (305.0 + 1500.0 - 200.0 * k * DT, 700.0 - 1200.0 * k * DT)
+        monitor.update(hallway_scan(heading, t, person), 200.0, seq)
+        t += DT
+        movers = [m for m in monitor.tracker.movers() if m.speed_mm_s > 800.0]
+        if movers:
+            seen_at = k
+            break
+    assert seen_at is not None and seen_at <= 10, seen_at

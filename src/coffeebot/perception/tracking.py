@@ -176,6 +176,10 @@ class ReturnTracker:
         dt = 0.0 if self._last_t is None else max(0.0, now - self._last_t)
         self._last_t = now
         self.odometry.advance(speed_mm_s, yaw_rate_dps, dt)
+        if self.turning_in_place(speed_mm_s, yaw_rate_dps):
+            # The cones sweep along the walls: their returns slide, nobody walks.
+            self.tracks = []
+            return self.tracks
         for track in self.tracks:
             self._predict(track, dt)
         sightings = self.sightings(scan, skip)
@@ -195,6 +199,13 @@ class ReturnTracker:
         self.lost = [m for m in self.lost if now - m.t_s <= self.cfg.lost_mover_s]
         self.tracks = [t for t in self.tracks if now - t.last_s <= self.cfg.forget_s]
         return self.tracks
+
+    def turning_in_place(self, speed_mm_s: float, yaw_rate_dps: float) -> bool:
+        cfg = self.cfg
+        return (
+            abs(yaw_rate_dps) >= cfg.turn_in_place_dps
+            and abs(speed_mm_s) < cfg.turn_in_place_speed_mm_s
+        )
 
     def _predict(self, track: Track, dt: float) -> None:
         f = np.eye(4)
