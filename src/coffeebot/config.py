@@ -706,13 +706,15 @@ class StateConfig(Section):
         description="speed and yaw rate are averaged over this much odometry: one telemetry "
         "step is a few ticks and a jittery time stamp, too coarse to size the door window",
     )
-    camera_reseed_sigma: float = Field(
+    camera_gate_sigma: float = Field(
         5.0,
         gt=0,
         le=100,
         description="a ceiling camera's fix further than this from the particle cloud (in "
-        "sigmas of the fix and the cloud together) re-seeds the particles around it: the cloud "
-        "is lost, and weighing it by the fix would only keep its particle nearest the fix",
+        "sigmas of the fix and the cloud together) is not used, as the Kalman filter's gate "
+        "refuses one: a single fix cannot tell a kidnapped robot from a wrong match, and a "
+        "wrong one would carry a robot that knows where it is metres off (the filter's own "
+        "recovery finds a kidnapped robot)",
     )
 
 

@@ -9,7 +9,7 @@ Each particle is a pose (x mm, y mm, heading rad) on the current floor:
 * **measurements** as likelihoods: the ToF scan against the floor's likelihood field
   (:mod:`~coffeebot.perception.range_model`, after ``update_min_mm``/``update_min_deg`` of
   motion, as nav2 does), UWB fixes (a Gaussian with an outlier floor), a ceiling camera's
-  pose fixes (a Gaussian in position and heading; one far from the cloud re-seeds it), and
+  pose fixes (a Gaussian in position and heading; one far from the cloud is not used), and
   optionally the angle and door modules' outputs;
 * **resampling**: low variance, at a KLD-sampling count, when the effective sample size
   drops or when recovery asks for fresh particles;
@@ -365,20 +365,23 @@ class ParticlePoseFusion:
     ) -> bool:
         """A whole pose measured from outside (a ceiling camera's fix).
 
-        It seeds the particles when there are none, and re-seeds them when it is more than
-        ``camera_reseed_sigma`` sigmas (the fix's and the cloud's together) from the cloud:
-        then the cloud is lost, and a weight update would only pick its particle nearest the
-        fix. Otherwise it weighs the particles by a Gaussian in position and heading, with no
-        outlier floor (the distance rule already judged the fix; a floor would let a fix much
-        tighter than the cloud barely move it). The recovery monitors are not fed: such a fix
-        fits the cloud poorly without the cloud being lost.
+        It seeds the particles when there are none, and is not used when it is more than
+        ``camera_gate_sigma`` sigmas (the fix's and the cloud's together) from the cloud: one
+        fix cannot tell a kidnap from a wrong match, and moving a robot that knows where it is
+        metres away on a wrong one is the worse mistake. Otherwise it weighs the particles by
+        a Gaussian in position and heading, with no outlier floor (the gate already judged
+        the fix; a floor would let a fix much tighter than the cloud barely move it). The
+        recovery monitors are not fed: such a fix fits the cloud poorly without the cloud
+        being lost.
         """
         values = (x_mm, y_mm, heading_deg, sigma_mm, sigma_deg)
         if not (all(math.isfinite(v) for v in values) and sigma_mm > 0 and sigma_deg > 0):
             return False
-        if not self.initialised or self._far_from_cloud(*values):
+        if not self.initialised:
             self.reset(*values)
             return True
+        if self._far_from_cloud(*values):
+            return False
         self._apply_motion()
         d2 = (self.particles[:, 0] - x_mm) ** 2 + (self.particles[:, 1] - y_mm) ** 2
         turn = wrap(math.radians(heading_deg) - self.particles[:, 2])
@@ -388,10 +391,10 @@ class ParticlePoseFusion:
     def _far_from_cloud(
         self, x_mm: float, y_mm: float, heading_deg: float, sigma_mm: float, sigma_deg: float
     ) -> bool:
-        """Whether a pose is beyond ``camera_reseed_sigma`` of the cloud: the position by its
+        """Whether a pose is beyond ``camera_gate_sigma`` of the cloud: the position by its
         Mahalanobis distance (a cloud long along a hallway reaches further along it), the
         heading by its own."""
-        limit = self.state_cfg.camera_reseed_sigma
+        limit = self.state_cfg.camera_gate_sigma
         x, y, heading = self.pose()
         cov = self.covariance()
         offset = np.array([x_mm - x, y_mm - y])

@@ -113,8 +113,8 @@ class StateEstimator:
         Its floor is believed only to place a fusion that has no pose yet: once tracking, the
         floor follows the elevator rides, and a fix for another floor is a wrong match, not
         a ride. Without a pose the fix places the robot (the particle filter's first
-        particles); with one it is fused: the Kalman filter's gate may reject it, the
-        particle filter re-seeds around a fix far from its cloud.
+        particles); with one it is fused behind a gate (the Kalman filter's, or the particle
+        filter's distance to its cloud): one wrong match must not carry a robot metres off.
         """
         values = (fix.x_mm, fix.y_mm, fix.heading_deg, fix.sigma_mm, fix.sigma_heading_deg)
         if fix.floor not in self._levels or not all(math.isfinite(v) for v in values):
