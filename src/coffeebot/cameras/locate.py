@@ -35,8 +35,7 @@ class FixRules(BaseModel):
         2.0,
         gt=0,
         description="the position sigma in multiples of the fit's mean error (the seed's "
-        "eq 7): the benchmark's errors stay under twice the fit's (p95 5 mm, max 90 mm at fit "
-        "errors to 50 mm)",
+        "eq 7), at least sigma_floor_mm; the benchmark's fix errors: p95 5 mm, max 18 mm",
     )
     heading_sigma_floor_deg: float = Field(
         1.0, gt=0, description="the least heading sigma a fix claims"
@@ -54,7 +53,7 @@ class Locator:
     never takes a robot that stopped for a standing object.
 
     Identification runs over several windows, shortest first (``windows_s``): a fast robot
-    spreads the 300 mm a fit needs in a short one and is named soon after it drives into
+    spreads the 150 mm a fit needs in a short one and is named soon after it drives into
     view, a slow one only in a long one. A robot takes its match from the shortest window
     that names it; matches that disagree (one robot on two tracks, two robots on one track)
     are refused, as any ambiguity is.

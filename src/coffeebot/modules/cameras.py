@@ -60,7 +60,6 @@ class CameraModule(Module):
             standing_rules=standing_rules,
         )
         self.path = OdometryPath(config.motor, config.state, keep_s=self.service.keep_s + 1.0)
-        self.fixes = 0
 
     async def run(self, ctx: ModuleContext) -> None:
         service = self.service
@@ -77,7 +76,6 @@ class CameraModule(Module):
                     self._take_odometry(odometry)
                     seen = await service.see(frames, now, {ROBOT: Robot(self.path, self._at(ctx))})
                     for found in seen.fixes:
-                        self.fixes += 1
                         ctx.board.publish(CAMERA_FIX, found.fix)
                     if seen.layer is not None:
                         ctx.board.publish(CAMERA_LAYER, seen.layer)
