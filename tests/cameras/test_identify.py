@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from coffeebot.cameras.identify import IdentifyRules, fit_similarity, identify
+from coffeebot.cameras.identify import Estimate, IdentifyRules, fit_similarity, identify
 
 RULES = IdentifyRules()
 Q = 50
@@ -58,6 +58,16 @@ def person_walking(rng: np.random.Generator, start: tuple[float, float]) -> np.n
     return np.asarray(start) + np.cumsum(
         200.0 * np.column_stack([np.cos(angles), np.sin(angles)]), axis=0
     )
+
+
+def estimate_at(
+    truth: np.ndarray, k: int, off_mm: tuple[float, float] = (0.0, 0.0), sigma_mm: float = 20.0
+) -> Estimate:
+    """The robot's own estimate at waypoint ``k``: its true position ``off_mm`` off, claiming
+    ``sigma_mm`` on each axis."""
+    x, y = truth[k, :2] + np.asarray(off_mm)
+    ox, oy, _ = odometry_of(truth)[k]
+    return Estimate((ox, oy), (x, y), ((sigma_mm**2, 0.0), (0.0, sigma_mm**2)))
 
 
 def heading_error(a: float, b: float) -> float:
@@ -241,6 +251,88 @@ def test_robots_driving_alike_side_by_side_are_refused_never_swapped(turn_rad_s:
     assert set(result.refused) == {"alpha", "bravo"}
     assert all(reason.startswith("ambiguous") for reason in result.refused.values())
     assert result.unmatched_tracks == ["t1", "t2"]
+
+
+@pytest.mark.parametrize("turn_rad_s", [0.0, 0.15], ids=["straight", "curving"])
+def test_robots_side_by_side_are_told_apart_by_their_own_estimates(turn_rad_s: float) -> None:
+    """The same two robots, each knowing where it is to 20 mm (and 40 mm off it): the
+    estimates are a metre apart, 25 sigmas, and settle which track is which."""
+    rng = np.random.default_rng(8)
+    alpha = drive((1000.0, 1000.0, 0.0), 300.0, turn_rad_s)
+    bravo = drive((1000.0, 2000.0, 0.0), 300.0, turn_rad_s)
+    tracks = {"t1": camera_track(alpha, rng, 10.0), "t2": camera_track(bravo, rng, 10.0)}
+    robots = {"alpha": odometry_of(alpha), "bravo": odometry_of(bravo)}
+    estimates = {"alpha": estimate_at(alpha, 30, (40.0, 0.0)), "bravo": estimate_at(bravo, 45)}
+
+    result = identify(tracks, robots, RULES, estimates)
+
+    assert result.matched["alpha"].track_id == "t1"
+    assert result.matched["bravo"].track_id == "t2"
+    assert math.dist(result.matched["alpha"].pose[:2], alpha[-1, :2]) < 30.0
+
+
+def test_one_estimate_settles_both_robots_only_for_the_robot_that_has_it() -> None:
+    """Alpha knows where it is, bravo (just switched on) does not: alpha's estimate sets
+    track t2 aside for alpha, but nothing says bravo is not on t1, so bravo's claim on t1
+    still makes alpha's match ambiguous, and bravo is refused as well."""
+    rng = np.random.default_rng(8)
+    alpha = drive((1000.0, 1000.0, 0.0), 300.0, 0.0)
+    bravo = drive((1000.0, 2000.0, 0.0), 300.0, 0.0)
+    tracks = {"t1": camera_track(alpha, rng, 10.0), "t2": camera_track(bravo, rng, 10.0)}
+    robots = {"alpha": odometry_of(alpha), "bravo": odometry_of(bravo)}
+
+    result = identify(tracks, robots, RULES, {"alpha": estimate_at(alpha, Q - 1)})
+
+    assert result.matched == {}
+    assert result.refused["alpha"] == "ambiguous: robots alpha and bravo fit track t1 within 2x"
+
+
+@pytest.mark.parametrize(
+    ("alpha_off_mm", "bravo_off_mm"),
+    [((0.0, 1000.0), (0.0, 0.0)), ((0.0, 500.0), (0.0, 500.0)), ((3000.0, 0.0), (0.0, 0.0))],
+    ids=["alpha-on-bravos-spot", "both-between", "alpha-lost"],
+)
+def test_a_wrong_estimate_never_swaps_two_robots(
+    alpha_off_mm: tuple[float, float], bravo_off_mm: tuple[float, float]
+) -> None:
+    """Alpha believing it is where bravo is, both halfway between, alpha lost 3 m away: a
+    wrong estimate may cost a match, never make a wrong one. (Both wrong by exactly their
+    spacing, each believing it is where the other is, would swap them: then nothing the
+    cameras or the robots know tells them apart.)"""
+    rng = np.random.default_rng(8)
+    alpha = drive((1000.0, 1000.0, 0.0), 300.0, 0.0)
+    bravo = drive((1000.0, 2000.0, 0.0), 300.0, 0.0)
+    tracks = {"t1": camera_track(alpha, rng, 10.0), "t2": camera_track(bravo, rng, 10.0)}
+    robots = {"alpha": odometry_of(alpha), "bravo": odometry_of(bravo)}
+    estimates = {
+        "alpha": estimate_at(alpha, Q - 1, alpha_off_mm),
+        "bravo": estimate_at(bravo, Q - 1, bravo_off_mm),
+    }
+
+    result = identify(tracks, robots, RULES, estimates)
+
+    truth = {"alpha": "t1", "bravo": "t2"}
+    named = {robot: match.track_id for robot, match in result.matched.items()}
+    assert all(named[robot] == truth[robot] for robot in named), named
+
+
+def test_a_lost_robots_estimate_does_not_stop_motion_from_naming_it() -> None:
+    """A robot whose estimate is 3 m off (kidnapped, a bad UWB fix) is still named on the
+    one track its motion explains: that is the fix that brings it back."""
+    rng = np.random.default_rng(12)
+    alpha = drive((500.0, 1500.0, 0.2), 350.0, 0.1)
+    result = identify(
+        {"t1": camera_track(alpha, rng, 5.0), "p1": person_walking(rng, (3000.0, 0.0))},
+        {"alpha": odometry_of(alpha)},
+        RULES,
+        {"alpha": estimate_at(alpha, Q - 1, (3000.0, 0.0))},
+    )
+    assert result.matched["alpha"].track_id == "t1"
+
+
+def test_estimate_rules_must_leave_a_band_between_agreeing_and_refuting() -> None:
+    with pytest.raises(ValueError, match="estimate_refutes_sigma must be larger"):
+        IdentifyRules(estimate_agrees_sigma=5.0, estimate_refutes_sigma=5.0)
 
 
 def test_robots_side_by_side_at_different_speeds_are_told_apart_by_scale() -> None:

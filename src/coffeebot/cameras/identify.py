@@ -8,6 +8,9 @@ a threshold, and once placed a robot 2.5 m off that way. Here the fits go throug
 assignment instead, and a match stands only when nothing else explains the motion nearly as
 well: a robot that stood still, a fit at the wrong scale or a close runner-up is refused,
 because a robot sent to the wrong place is worse than one that waits for a better look.
+Motion alone cannot tell apart two robots driving side by side the same way; where the
+robots' own estimates of where they are (UWB, doors, walls) tell the candidates apart by
+many of their sigmas, the estimate breaks the tie.
 """
 
 from __future__ import annotations
@@ -18,7 +21,7 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 from scipy.optimize import linear_sum_assignment
 
 
@@ -146,6 +149,55 @@ class IdentifyRules(BaseModel):
         "NaN rows, a blob cut by the image's border, are left out of its fits): through a "
         "few points almost any path fits",
     )
+    estimate_agrees_sigma: float = Field(
+        4.0,
+        gt=0,
+        description="a fit agrees with the robot's own estimate when it puts the robot within "
+        "this many of the estimate's sigmas (Mahalanobis). The fused estimate's own error "
+        "in simulated deliveries stayed within 4.0 of its claimed sigmas (p99 2.8)",
+    )
+    estimate_refutes_sigma: float = Field(
+        10.0,
+        gt=0,
+        description="a fit the robot's own estimate refutes puts it more than this many "
+        "sigmas away: only a rival refuted by it is set aside, and only for a match the "
+        "estimate agrees with. Robots side by side in a hallway are 500 mm or more apart, "
+        "25 of a localized robot's 20 mm sigmas",
+    )
+    estimate_sigma_floor_mm: float = Field(
+        30.0,
+        ge=0,
+        description="added to the estimate's sigma (in quadrature) in both tests: the fit's "
+        "own error at the estimate's moment and the estimate's lag behind the robot",
+    )
+
+    @model_validator(mode="after")
+    def _refutes_beyond_agrees(self) -> IdentifyRules:
+        if self.estimate_refutes_sigma <= self.estimate_agrees_sigma:
+            raise ValueError(
+                "estimate_refutes_sigma must be larger than estimate_agrees_sigma: a fit "
+                "cannot both agree with the estimate and be refuted by it"
+            )
+        return self
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """Where a robot's own estimate put it at one moment: the point of its odometry path at
+    that moment (odometry frame, mm), and the floor position (mm) with its covariance (mm²).
+    A fit that carries the first onto the second is where the robot believes it is."""
+
+    odometry_xy: tuple[float, float]
+    floor_xy: tuple[float, float]
+    covariance_mm2: tuple[tuple[float, float], tuple[float, float]]
+
+    def sigmas_from(self, similarity: Similarity, floor_mm: float) -> float:
+        """How many of its sigmas (Mahalanobis, its covariance widened by ``floor_mm`` on
+        each axis) the estimate is from where ``similarity`` puts the robot."""
+        placed = similarity.to_floor(np.array(self.odometry_xy))
+        offset = placed - np.array(self.floor_xy)
+        covariance = np.array(self.covariance_mm2) + floor_mm**2 * np.eye(2)
+        return float(math.sqrt(max(0.0, offset @ np.linalg.solve(covariance, offset))))
 
 
 class FloorPose(NamedTuple):
@@ -179,17 +231,23 @@ def identify(
     tracks: Mapping[str, np.ndarray],
     robots: Mapping[str, np.ndarray],
     rules: IdentifyRules,
+    estimates: Mapping[str, Estimate] | None = None,
 ) -> Identification:
     """Match camera tracks (q, 2: floor mm) to robots' odometry (q, 3: x mm, y mm, heading
-    rad), all resampled to the same q timestamps.
+    rad), all resampled to the same q timestamps; ``estimates``: where robots' own estimates
+    put them (a robot without one, such as one not localized, is named by motion alone).
 
     A (robot, track) pair is plausible when the robot moved enough and the fit's scale is as
     expected, admissible when its error is also within the gate. The assignment minimises the
-    total error over admissible pairs; an assigned pair is then refused if another fit of the
-    same robot or the same track at the expected scale is within ``margin`` times its error.
-    Rivals may be just outside the gate: a fit at 160 mm is no less a rival of one at 140 mm
-    for it. Nor need a rival robot have moved enough to be named: one that crept 290 mm along
-    a track may well be the one on it.
+    total error over admissible pairs, those the robot's estimate agrees with first; an
+    assigned pair is then refused if another fit of the same robot or the same track at the
+    expected scale is within ``margin`` times its error. Rivals may be just outside the gate:
+    a fit at 160 mm is no less a rival of one at 140 mm for it. Nor need a rival robot have
+    moved enough to be named: one that crept 290 mm along a track may well be the one on it.
+    A rival is set aside only when the robot's estimate agrees with the assigned pair and the
+    estimate of the robot in the rival pair refutes that pair: an estimate never names a
+    robot that motion does not, and a lost robot's estimate, which agrees with nothing,
+    settles nothing.
     """
     _check_paths(tracks, robots)
     seen = {track_id: np.asarray(path, dtype=float) for track_id, path in tracks.items()}
@@ -222,11 +280,16 @@ def identify(
     scale_ok = np.abs(scales / rules.expected_scale - 1.0) <= rules.scale_tolerance
     plausible = moved & scale_ok
     admissible = plausible & (errors <= rules.gate_mm)
+    agrees, refutes = _against_estimates(fits, robot_ids, estimates or {}, rules)
+    has_estimate = np.array([r in (estimates or {}) for r in robot_ids]).reshape(-1, 1)
 
-    # Larger than any sum of admissible errors, so no assignment trades a match for a cheaper one.
+    # Each tier costs more than any sum of the tier below, so no assignment trades a match
+    # for a cheaper one, nor one its robot's estimate agrees with for a better fit.
     worst = float(errors[admissible].max()) if admissible.any() else 0.0
-    inadmissible_cost = (worst + 1.0) * (min(errors.shape) + 1)
-    rows, cols = linear_sum_assignment(np.where(admissible, errors, inadmissible_cost))
+    disagreeing_cost = (worst + 1.0) * (min(errors.shape) + 1)
+    inadmissible_cost = (worst + disagreeing_cost + 1.0) * (min(errors.shape) + 1)
+    costs = np.where(has_estimate & ~agrees, errors + disagreeing_cost, errors)
+    rows, cols = linear_sum_assignment(np.where(admissible, costs, inadmissible_cost))
     assigned = {int(i): int(j) for i, j in zip(rows, cols, strict=True) if admissible[i, j]}
 
     matched: dict[str, Match] = {}
@@ -242,7 +305,9 @@ def identify(
             )
         else:
             j = assigned[i]
-            ambiguity = _ambiguity(i, j, errors, scale_ok, robot_ids, track_ids, rules.margin)
+            # A fit its robot's estimate refutes is no rival of a pair the estimate agrees with.
+            rivals = scale_ok & ~(refutes & agrees[i, j])
+            ambiguity = _ambiguity(i, j, errors, rivals, robot_ids, track_ids, rules.margin)
             if ambiguity:
                 refused[robot_id] = ambiguity
             else:
@@ -262,6 +327,29 @@ def _fit_where_seen(
     if whole.sum() < rules.min_points:
         return None
     return fit_similarity(odometry[whole], seen[whole])
+
+
+def _against_estimates(
+    fits: list[list[Similarity | None]],
+    robot_ids: list[str],
+    estimates: Mapping[str, Estimate],
+    rules: IdentifyRules,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Which fits the robots' own estimates agree with and which they refute (robots by
+    tracks; both False where a robot has no estimate or a pair no fit)."""
+    sigmas = np.array(
+        [
+            [
+                math.nan
+                if fit is None or robot not in estimates
+                else estimates[robot].sigmas_from(fit, rules.estimate_sigma_floor_mm)
+                for fit in row
+            ]
+            for robot, row in zip(robot_ids, fits, strict=True)
+        ]
+    ).reshape(len(fits), len(fits[0]) if fits else 0)
+    with np.errstate(invalid="ignore"):
+        return sigmas <= rules.estimate_agrees_sigma, sigmas > rules.estimate_refutes_sigma
 
 
 def _check_paths(tracks: Mapping[str, np.ndarray], robots: Mapping[str, np.ndarray]) -> None:
@@ -321,20 +409,21 @@ def _ambiguity(
     robot: int,
     track: int,
     errors: np.ndarray,
-    at_scale: np.ndarray,
+    can_rival: np.ndarray,
     robot_ids: list[str],
     track_ids: list[str],
     margin: float,
 ) -> str:
-    """Why the assigned pair is ambiguous, or "" if it is not. At or below ``margin`` times
-    its error counts as close, so two perfect (zero-error) fits are ambiguous too."""
+    """Why the assigned pair is ambiguous, or "" if it is not: a pair ``can_rival`` allows
+    that shares its robot or its track and fits within ``margin`` times its error (at or
+    below counts as close, so two perfect, zero-error fits are ambiguous too)."""
     bound = margin * errors[robot, track]
-    rival_tracks = [j for j in _indices(at_scale[robot] & (errors[robot] <= bound)) if j != track]
+    rival_tracks = [j for j in _indices(can_rival[robot] & (errors[robot] <= bound)) if j != track]
     if rival_tracks:
         names = " and ".join(track_ids[j] for j in [track, *rival_tracks])
         return f"ambiguous: tracks {names} fit within {margin:g}x"
     rival_robots = [
-        i for i in _indices(at_scale[:, track] & (errors[:, track] <= bound)) if i != robot
+        i for i in _indices(can_rival[:, track] & (errors[:, track] <= bound)) if i != robot
     ]
     if rival_robots:
         names = " and ".join(robot_ids[i] for i in [robot, *rival_robots])
