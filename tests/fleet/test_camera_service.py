@@ -31,6 +31,7 @@ from coffeebot.fleet.protocol import (
     CameraLayerReport,
     OdometryBatch,
     OdometrySample,
+    PositionSample,
     decode,
     encode,
     robot_topic,
@@ -76,9 +77,9 @@ FIX = CameraFix(
 def batch(*times: float) -> OdometryBatch:
     return OdometryBatch(
         samples=[OdometrySample(t_s=t, x_mm=50.0 * t, y_mm=0.0, heading_deg=0.0) for t in times],
-        floor=2,
-        x_mm=41000.0,
-        y_mm=0.0,
+        estimate=PositionSample(
+            t_s=times[-1], floor=2, x_mm=41000.0, y_mm=0.0, sigma_x_mm=30.0, sigma_y_mm=20.0
+        ),
     )
 
 
@@ -108,6 +109,17 @@ def test_an_odometry_batch_and_a_fix_cross_the_wire_unchanged() -> None:
         (
             b'{"samples": [{"t_s": 1, "x_mm": 0, "y_mm": 0, "heading_deg": 0}], "speed": 1}',
             "speed: Extra inputs are not permitted",
+        ),
+        (
+            b'{"samples": [{"t_s": 1, "x_mm": 0, "y_mm": 0, "heading_deg": 0}], "estimate":'
+            b' {"t_s": 1, "floor": 2, "x_mm": 0, "y_mm": 0, "sigma_x_mm": 10,'
+            b' "sigma_y_mm": 10, "cov_xy_mm2": 500}}',
+            "estimate: Value error, cov_xy_mm2 is larger than sigma_x_mm * sigma_y_mm allows",
+        ),
+        (
+            b'{"samples": [{"t_s": 1, "x_mm": 0, "y_mm": 0, "heading_deg": 0}], "estimate":'
+            b' {"t_s": 1, "floor": 2, "x_mm": 0, "y_mm": 0, "sigma_x_mm": -1, "sigma_y_mm": 1}}',
+            "estimate.sigma_x_mm: Input should be greater than or equal to 0",
         ),
     ],
 )
@@ -285,7 +297,13 @@ async def test_the_service_gets_the_robots_path_and_estimate_and_the_robot_the_l
     robot, service = ends
     await until(lambda: "robot-1" in service.robots, "the service hears robot-1's odometry")
     known = service.robots["robot-1"]
-    assert known.at == (2, 41000, 0)
+    assert known.estimate is not None
+    assert known.estimate.place == (2, 41000, 0)
+    assert known.estimate.covariance_mm2 == ((900.0, 0.0), (0.0, 900.0))
+    # Its moment, carried over the fleet's time base onto the service's clock (here the same).
+    published = robot.board.latest(CURRENT_STATE)
+    assert published is not None
+    assert known.estimate.t_s == pytest.approx(published.stamp, abs=0.01)
     await until(lambda: robot.board.latest(CAMERA_LAYER) is not None, "the layer on the board")
     layer = robot.board.latest(CAMERA_LAYER)
     assert layer is not None

@@ -16,6 +16,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from coffeebot.cameras.identify import IdentifyRules, Similarity, identify
 from coffeebot.cameras.odometry_path import PosePath
+from coffeebot.cameras.own_estimate import OwnEstimate
 from coffeebot.cameras.watch import CameraWatch
 from coffeebot.messages import CameraFix
 
@@ -60,7 +61,8 @@ class Locator:
 
     The windows end at the newest frame every robot's odometry reaches (within
     ``telemetry_slack_s``): on the robot itself that is the newest frame; the fleet's camera
-    service gets the odometry in batches over the broker, a moment later.
+    service gets the odometry in batches over the broker, a moment later. The robots' own
+    estimates, where they have them, break ties motion cannot (:func:`identify`).
     """
 
     def __init__(
@@ -80,17 +82,21 @@ class Locator:
         return known
 
     def locate(
-        self, watch: CameraWatch, paths: Mapping[str, PosePath]
+        self,
+        watch: CameraWatch,
+        paths: Mapping[str, PosePath],
+        estimates: Mapping[str, OwnEstimate] | None = None,
     ) -> tuple[dict[str, CameraFix], dict[str, str]]:
         """Fixes of the robots named on ``watch``'s tracks now, and for every other robot of
-        ``paths`` why it was not named (over the shortest window, in plain words)."""
+        ``paths`` why it was not named (over the shortest window, in plain words);
+        ``estimates``: where robots' own estimates put them."""
         named: dict[str, tuple[str, Similarity, np.ndarray, np.ndarray]] = {}
         refused: dict[str, str] = {}
         clashing: set[str] = set()
         reached = [latest[0] for path in paths.values() if (latest := path.latest) is not None]
         until_s = min(reached) + self.fix_rules.telemetry_slack_s if reached else None
         for window_s in self.windows_s:
-            found, reasons = self._identify(watch, paths, window_s, until_s)
+            found, reasons = self._identify(watch, paths, estimates or {}, window_s, until_s)
             for robot, reason in reasons.items():
                 refused.setdefault(robot, reason)
             for robot, match in found.items():
@@ -123,6 +129,7 @@ class Locator:
         self,
         watch: CameraWatch,
         paths: Mapping[str, PosePath],
+        estimates: Mapping[str, OwnEstimate],
         window_s: float,
         until_s: float | None,
     ) -> tuple[dict[str, tuple[str, Similarity, np.ndarray, np.ndarray]], dict[str, str]]:
@@ -151,7 +158,12 @@ class Locator:
             return {}, reasons
         if not odometry:
             return {}, reasons
-        result = identify(tracks, odometry, self.identify_rules)
+        tied = {
+            robot: estimate
+            for robot, own in estimates.items()
+            if robot in odometry and (estimate := own.on(paths[robot], slack)) is not None
+        }
+        result = identify(tracks, odometry, self.identify_rules, tied)
         reasons.update(result.refused)
         found = {
             robot: (match.track_id, match.similarity, tracks[match.track_id], odometry[robot])

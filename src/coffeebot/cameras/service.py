@@ -20,6 +20,7 @@ import numpy as np
 from coffeebot.cameras.identify import IdentifyRules
 from coffeebot.cameras.locate import FixRules, Locator
 from coffeebot.cameras.odometry_path import PosePath
+from coffeebot.cameras.own_estimate import OwnEstimate
 from coffeebot.cameras.sources import FrameSource
 from coffeebot.cameras.standing import StandingObjects, StandingRules
 from coffeebot.cameras.watch import CameraWatch
@@ -40,12 +41,11 @@ Frames = dict[str, np.ndarray | None]
 
 @dataclass(frozen=True)
 class Robot:
-    """One robot as the cameras need it: its odometry, and where its own estimate puts it
-    (floor, x, y; None while it is not localized), which picks the cameras that look for it
-    (all of them while it is None) and keeps it off the map's layer."""
+    """One robot as the cameras need it: its odometry, and its own estimate (None while it
+    is not localized: then every camera looks for it)."""
 
     path: PosePath
-    at: tuple[int, float, float] | None
+    estimate: OwnEstimate | None
 
 
 class RobotFix(NamedTuple):
@@ -130,7 +130,7 @@ class CameraService:
         """``frames`` (grabbed at ``now``) through the pipelines and into the layer; the
         robots named on the cameras' tracks, at most one fix per camera every
         ``fix_period_s``; the layer when it changed or has not gone out for a second."""
-        places = [robot.at for robot in robots.values() if robot.at is not None]
+        places = [robot.estimate.place for robot in robots.values() if robot.estimate is not None]
         changed = await self._running().call(self._see_all, frames, now, places)
         self._report(now)
         return Seen(self._locate(now, robots), self._layer(now, changed))
@@ -180,15 +180,21 @@ class CameraService:
     def _locate(self, now: float, robots: Mapping[str, Robot]) -> list[RobotFix]:
         fixes: list[RobotFix] = []
         for camera_id, watch in self.watches.items():
-            paths = {
-                name: robot.path
+            looked_for = {
+                name: robot
                 for name, robot in robots.items()
-                if robot.at is None or robot.at[0] == watch.level
+                if robot.estimate is None or robot.estimate.floor == watch.level
             }
+            paths = {name: robot.path for name, robot in looked_for.items()}
             fixed_at = self._fixed_at.get(camera_id)
             if not paths or (fixed_at is not None and now - fixed_at < self.settings.fix_period_s):
                 continue
-            found, _ = self.locator.locate(watch, paths)
+            estimates = {
+                name: robot.estimate
+                for name, robot in looked_for.items()
+                if robot.estimate is not None
+            }
+            found, _ = self.locator.locate(watch, paths, estimates)
             for name, fix in found.items():
                 newest = paths[name].latest
                 assert newest is not None  # it covered the window

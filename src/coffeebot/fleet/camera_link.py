@@ -17,6 +17,7 @@ import math
 import numpy as np
 
 from coffeebot.cameras.odometry_path import OdometryPath
+from coffeebot.cameras.own_estimate import OwnEstimate
 from coffeebot.config import RobotConfig
 from coffeebot.fleet.protocol import (
     MAX_SAMPLES,
@@ -24,6 +25,7 @@ from coffeebot.fleet.protocol import (
     CameraLayerReport,
     OdometryBatch,
     OdometrySample,
+    PositionSample,
     layer_shifted,
 )
 from coffeebot.messages import CameraFix, CameraLayer, Odometry
@@ -49,11 +51,11 @@ class CameraLink:
         """Telemetry from the board, stamped ``t_s`` on its clock."""
         self.path.add(odometry, t_s)
 
-    def batch(self, offset_s: float, at: tuple[int, float, float] | None) -> OdometryBatch | None:
+    def batch(self, offset_s: float, estimate: OwnEstimate | None) -> OdometryBatch | None:
         """The path since the last batch, ``SAMPLE_HZ`` samples a second ending with the
-        newest (after an outage, the last ``MAX_SAMPLES`` of it), its times moved by
-        ``offset_s`` onto the fleet's time base; ``at``: the robot's estimate. None when the
-        path has nothing new."""
+        newest (after an outage, the last ``MAX_SAMPLES`` of it), and the robot's estimate,
+        their times moved by ``offset_s`` onto the fleet's time base. None when the path has
+        nothing new."""
         latest = self.path.latest
         if latest is None:
             return None
@@ -73,8 +75,7 @@ class CameraLink:
             )
             for t, (x, y, heading) in zip(times, self.path.at(times), strict=True)
         ]
-        floor, x_mm, y_mm = at if at is not None else (None, None, None)
-        return OdometryBatch(samples=samples, floor=floor, x_mm=x_mm, y_mm=y_mm)
+        return OdometryBatch(samples=samples, estimate=_sample(estimate, offset_s))
 
     def fix(self, report: CameraFixReport, offset_s: float) -> CameraFix | None:
         """The service's fix carried on from its moment to the path's newest sample; None
@@ -99,3 +100,18 @@ class CameraLink:
         if now - (report.at_s - offset_s) > self.stale_s:
             return None
         return layer_shifted(report.layer, -offset_s)
+
+
+def _sample(estimate: OwnEstimate | None, offset_s: float) -> PositionSample | None:
+    if estimate is None:
+        return None
+    (xx, xy), (_, yy) = estimate.covariance_mm2
+    return PositionSample(
+        t_s=estimate.t_s + offset_s,
+        floor=estimate.floor,
+        x_mm=round(estimate.x_mm, 1),
+        y_mm=round(estimate.y_mm, 1),
+        sigma_x_mm=math.sqrt(xx),
+        sigma_y_mm=math.sqrt(yy),
+        cov_xy_mm2=xy,
+    )

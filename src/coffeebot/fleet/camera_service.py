@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import aiomqtt
 
 from coffeebot.cameras.odometry_path import PosePath
+from coffeebot.cameras.own_estimate import OwnEstimate
 from coffeebot.cameras.service import CameraService, Robot
 from coffeebot.cameras.sources import FrameSource
 from coffeebot.config import RobotConfig
@@ -45,6 +46,7 @@ from coffeebot.fleet.protocol import (
     FleetClock,
     FleetMessage,
     OdometryBatch,
+    PositionSample,
     encode,
     fleet_offset,
     layer_shifted,
@@ -70,11 +72,11 @@ CONNECTED, DISCONNECTED = "connected", "disconnected"
 
 @dataclass
 class RobotPath:
-    """What the service knows of one robot: its odometry (on the service's clock) and
-    where its estimate put it, as of ``heard_s``."""
+    """What the service knows of one robot: its odometry and its own estimate (on the
+    service's clock), as of ``heard_s``."""
 
     path: PosePath
-    at: tuple[int, float, float] | None
+    estimate: OwnEstimate | None
     heard_s: float
 
 
@@ -143,7 +145,7 @@ class CameraServiceModule(Module):
 
     def _robots_now(self, now: float) -> dict[str, Robot]:
         return {
-            name: Robot(robot.path, robot.at)
+            name: Robot(robot.path, robot.estimate)
             for name, robot in self.robots.items()
             if now - robot.heard_s <= FORGET_S
         }
@@ -223,6 +225,19 @@ class CameraServiceModule(Module):
             known.path.add_pose(
                 sample.t_s - offset, sample.x_mm, sample.y_mm, math.radians(sample.heading_deg)
             )
-        floor, x_mm, y_mm = batch.floor, batch.x_mm, batch.y_mm
-        known.at = None if floor is None or x_mm is None or y_mm is None else (floor, x_mm, y_mm)
+        known.estimate = _own(batch.estimate, offset)
         known.heard_s = now
+
+
+def _own(sample: PositionSample | None, offset_s: float) -> OwnEstimate | None:
+    """A robot's estimate from the wire, on the service's clock."""
+    if sample is None:
+        return None
+    cov = sample.cov_xy_mm2
+    return OwnEstimate(
+        t_s=sample.t_s - offset_s,
+        floor=sample.floor,
+        x_mm=sample.x_mm,
+        y_mm=sample.y_mm,
+        covariance_mm2=((sample.sigma_x_mm**2, cov), (cov, sample.sigma_y_mm**2)),
+    )

@@ -42,7 +42,14 @@ from collections.abc import Callable, Mapping
 from enum import StrEnum
 from typing import Annotated, Literal, TypeVar
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
 from coffeebot.clock import Clock
 from coffeebot.messages import (
@@ -209,15 +216,32 @@ class OdometrySample(FleetMessage):
     """Unwrapped: continuous from one sample to the next, so it may pass 360."""
 
 
+class PositionSample(FleetMessage):
+    """Where the robot's own estimate put it at ``t_s``, with the 1-sigma of its position."""
+
+    t_s: Finite = Field(description="the fleet's shared time (FleetClock)")
+    floor: int
+    x_mm: Finite
+    y_mm: Finite
+    sigma_x_mm: Finite = Field(ge=0)
+    sigma_y_mm: Finite = Field(ge=0)
+    cov_xy_mm2: Finite = 0.0
+
+    @model_validator(mode="after")
+    def _a_covariance(self) -> PositionSample:
+        if self.cov_xy_mm2**2 > (self.sigma_x_mm * self.sigma_y_mm) ** 2:
+            raise ValueError("cov_xy_mm2 is larger than sigma_x_mm * sigma_y_mm allows")
+        return self
+
+
 class OdometryBatch(FleetMessage):
     """A robot's latest stretch of dead-reckoned path, in its odometry's own frame (never
     pulled onto the plan), for the camera service to name it on a camera's tracks; with
-    where its own estimate puts it, so that it is not taken for an object standing there."""
+    where its own estimate puts it (none while it is not localized), so that it is not
+    taken for an object standing there and is told apart from a robot driving beside it."""
 
     samples: list[OdometrySample] = Field(min_length=1, max_length=MAX_SAMPLES)
-    floor: int | None = None
-    x_mm: Finite | None = None
-    y_mm: Finite | None = None
+    estimate: PositionSample | None = None
 
     @field_validator("samples")
     @classmethod

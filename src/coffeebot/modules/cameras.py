@@ -16,6 +16,7 @@ from coffeebot.board import Subscription
 from coffeebot.cameras.identify import IdentifyRules
 from coffeebot.cameras.locate import FixRules
 from coffeebot.cameras.odometry_path import OdometryPath
+from coffeebot.cameras.own_estimate import OwnEstimate
 from coffeebot.cameras.service import CameraService, Robot
 from coffeebot.cameras.sources import FrameSource
 from coffeebot.cameras.standing import StandingRules
@@ -74,7 +75,8 @@ class CameraModule(Module):
                     now = ctx.clock.now()
                     frames = await service.grab(now)
                     self._take_odometry(odometry)
-                    seen = await service.see(frames, now, {ROBOT: Robot(self.path, self._at(ctx))})
+                    robot = Robot(self.path, self._estimate(ctx))
+                    seen = await service.see(frames, now, {ROBOT: robot})
                     for found in seen.fixes:
                         ctx.board.publish(CAMERA_FIX, found.fix)
                     if seen.layer is not None:
@@ -88,9 +90,6 @@ class CameraModule(Module):
             self.path.add(envelope.msg, envelope.stamp)
 
     @staticmethod
-    def _at(ctx: ModuleContext) -> tuple[int, float, float] | None:
+    def _estimate(ctx: ModuleContext) -> OwnEstimate | None:
         state = ctx.board.latest(CURRENT_STATE)
-        if state is None or not state.msg.pose.initialised:
-            return None
-        pose = state.msg.pose
-        return pose.floor, pose.x_mm, pose.y_mm
+        return None if state is None else OwnEstimate.of(state.msg.pose, state.stamp)

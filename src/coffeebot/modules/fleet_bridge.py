@@ -37,6 +37,7 @@ import aiomqtt
 from pydantic import BaseModel
 
 from coffeebot.board import Subscription
+from coffeebot.cameras.own_estimate import OwnEstimate
 from coffeebot.config import RobotConfig
 from coffeebot.fleet.camera_link import BATCH_S, CameraLink
 from coffeebot.fleet.client import fleet_session
@@ -353,9 +354,9 @@ class FleetBridge(Module):
     ) -> None:
         """The path to the camera service every ``BATCH_S``, with the robot's estimate."""
         while True:
-            pose = self._pose(ctx)
-            at = None if pose is None else (pose.floor, pose.x_mm, pose.y_mm)
-            batch = cameras.batch(fleet_offset(ctx.clock, self.fleet_clock), at)
+            state = ctx.board.latest(CURRENT_STATE)
+            estimate = None if state is None else OwnEstimate.of(state.msg.pose, state.stamp)
+            batch = cameras.batch(fleet_offset(ctx.clock, self.fleet_clock), estimate)
             if batch is not None:
                 await client.publish(self.topic("odometry"), encode(batch), qos=QOS["odometry"])
             await ctx.clock.sleep(BATCH_S)
