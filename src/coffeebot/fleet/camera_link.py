@@ -111,7 +111,8 @@ def _sample(estimate: OwnEstimate | None, offset_s: float) -> PositionSample | N
         floor=estimate.floor,
         x_mm=round(estimate.x_mm, 1),
         y_mm=round(estimate.y_mm, 1),
-        sigma_x_mm=math.sqrt(xx),
-        sigma_y_mm=math.sqrt(yy),
-        cov_xy_mm2=xy,
+        # Sigmas rounded up and the covariance towards zero: still a covariance, no tighter.
+        sigma_x_mm=math.ceil(10 * math.sqrt(xx)) / 10,
+        sigma_y_mm=math.ceil(10 * math.sqrt(yy)) / 10,
+        cov_xy_mm2=math.trunc(10 * xy) / 10,
     )
