@@ -22,6 +22,8 @@ What it measures, on the simulated clock:
 - ``contacts``: any touch of a robot's body, in either strategy's run;
 - ``elevator_wait_p95_s``: from a robot's asking for the elevator (at its door) until it is
   inside the car, the car's own travel included;
+- with ``--cameras``, per run (``--save``): every ceiling-camera fix a robot received
+  against where it truly was (p95, max, and each one over 300 mm or for the wrong floor);
 - ``joint_p95_s``, ``greedy_p95_s``: the wait p95 of each strategy's run (greedy: null where
   it was not run).
 
@@ -46,10 +48,12 @@ import contextlib
 import functools
 import json
 import logging
+import math
 import random
 import sys
 import time
 from collections import defaultdict
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -63,11 +67,12 @@ from coffeebot.cpu import BOARD_NAME
 from coffeebot.fleet.mosquitto import DISPATCHER_USER, Mosquitto, mosquitto
 from coffeebot.floorplan import load_floorplan
 from coffeebot.logs import LogfmtFormatter, RobotTag
-from coffeebot.messages import DELIVERY_STATUS, LEASE_NEED, OrderStatus
+from coffeebot.messages import CAMERA_FIX, DELIVERY_STATUS, LEASE_NEED, OrderStatus
 from coffeebot.modules.base import Module, ModuleContext
 from coffeebot.runtime.fleet import FleetSim, build_fleet_sim, robot_ids, serve_fleet
 from coffeebot.scenario.spec import Staff
 from coffeebot.scenario.staff import StaffModule
+from coffeebot.sim.simulation import Simulation
 from coffeebot.store import NewOrder, OrderRules
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -108,18 +113,24 @@ class Case:
 
 @dataclass
 class Probe(Module):
-    """On a robot's board: when it asked for the elevator, which orders it got to the door."""
+    """On a robot's board: when it asked for the elevator, which orders it got to the door,
+    and how far each camera fix it received was from where it truly was (``truth``: the
+    simulated robot's floor and position, set once the fleet is built)."""
 
     name = "bench_probe"
-    inputs = (DELIVERY_STATUS, LEASE_NEED)
+    inputs = (DELIVERY_STATUS, LEASE_NEED, CAMERA_FIX)
 
     elevator_asked_s: list[float] = field(default_factory=list)
     at_door: set[str] = field(default_factory=set)
+    truth: Callable[[], tuple[int, float, float]] | None = None
+    fix_errors: list[tuple[float, str, float]] = field(default_factory=list)
+    """(simulated second, camera, distance mm) of every fix received."""
 
     async def run(self, ctx: ModuleContext) -> None:
         with (
             ctx.board.subscribe(DELIVERY_STATUS) as reports,
             ctx.board.subscribe(LEASE_NEED) as needs,
+            ctx.board.subscribe(CAMERA_FIX) as fixes,
         ):
             while True:
                 while (report := reports.get_nowait()) is not None:
@@ -128,6 +139,12 @@ class Probe(Module):
                 while (need := needs.get_nowait()) is not None:
                     if need.msg.place == "elevator" and need.msg.want:
                         self.elevator_asked_s.append(ctx.clock.now())
+                while (fix := fixes.get_nowait()) is not None and self.truth is not None:
+                    floor, x, y = self.truth()
+                    off = math.hypot(fix.msg.x_mm - x, fix.msg.y_mm - y)
+                    if floor != fix.msg.floor:
+                        off = math.inf
+                    self.fix_errors.append((ctx.clock.now(), fix.msg.camera_id, off))
                 await ctx.clock.sleep(SAMPLE_S)
 
 
@@ -272,6 +289,20 @@ async def drive(
         "elevator_rides": len(elevator),
         "elevator_wait_p95_s": percentile(elevator, 95),
         "contacts": contacts,
+        "camera_fixes": len(fix_errors := [e for p in probes.values() for e in p.fix_errors]),
+        "camera_fix_error_mm_p95": percentile(
+            [e for _, _, e in fix_errors if math.isfinite(e)], 95
+        ),
+        "camera_fix_error_mm_max": max(
+            (round(e, 1) for _, _, e in fix_errors if math.isfinite(e)), default=None
+        ),
+        "camera_fixes_over_300mm": [
+            f"{name} at {t:.1f} s: {camera} "
+            + (f"{e:.0f} mm" if math.isfinite(e) else "wrong floor")
+            for name, probe in probes.items()
+            for t, camera, e in probe.fix_errors
+            if e > 300.0
+        ],
         "lost": unfinished,  # after the broker-kill case's drain: orders that never ended
         "duplicated": sum(n > 1 for n in servers.values()),
         "dispatcher_cpu_pct_per_robot": round(
@@ -305,6 +336,8 @@ async def run_case(case: Case) -> dict[str, Any]:
             dispatcher_extra=[staff],
             robot_extra=lambda name: [probes[name]],
         ) as fleet:
+            for sim in fleet.sims:
+                probes[sim.robot.name].truth = functools.partial(_truth, fleet, sim)
             serving = asyncio.create_task(serve_fleet(fleet))
             observer = asyncio.create_task(observe(broker, traffic))
             try:
@@ -322,6 +355,12 @@ async def run_case(case: Case) -> dict[str, Any]:
     )
     result["wall_s"] = round(time.monotonic() - started, 1)
     return result
+
+
+def _truth(fleet: FleetSim, sim: Simulation) -> tuple[int, float, float]:
+    with fleet.world.lock:
+        pose = sim.robot.pose
+        return sim.robot.floor_level, pose.x_mm, pose.y_mm
 
 
 def run_case_in_process(case: Case, log_dir: Path | None) -> dict[str, Any]:
@@ -401,6 +440,14 @@ def print_table(result: dict[str, Any], runs: list[dict[str, Any]], elapsed: flo
             f"| {r['broker_msgs_per_s_per_robot']} | {r['broker_bytes_per_s_per_robot']} "
             f"| {r['dispatcher_cpu_pct_per_robot']} |"
         )
+    for r in runs:
+        if r["camera_fixes"]:
+            label = f"{r['robots']} x {r['orders_per_h']:g}/h {r['strategy']}"
+            print(
+                f"\n{label}: {r['camera_fixes']} camera fixes, error p95 "
+                f"{r['camera_fix_error_mm_p95']} mm, max {r['camera_fix_error_mm_max']} mm; "
+                f"over 300 mm: {', '.join(r['camera_fixes_over_300mm']) or 'none'}"
+            )
     print(f"\n{elapsed / 60:.1f} min")
 
 
