@@ -127,25 +127,36 @@ class Probe(Module):
     """(simulated second, camera, distance mm) of every fix received."""
 
     async def run(self, ctx: ModuleContext) -> None:
-        with (
-            ctx.board.subscribe(DELIVERY_STATUS) as reports,
-            ctx.board.subscribe(LEASE_NEED) as needs,
-            ctx.board.subscribe(CAMERA_FIX) as fixes,
-        ):
-            while True:
-                while (report := reports.get_nowait()) is not None:
-                    if report.msg.status in AT_THE_DOOR:
-                        self.at_door.add(report.msg.order_id)
-                while (need := needs.get_nowait()) is not None:
-                    if need.msg.place == "elevator" and need.msg.want:
-                        self.elevator_asked_s.append(ctx.clock.now())
-                while (fix := fixes.get_nowait()) is not None and self.truth is not None:
-                    floor, x, y = self.truth()
-                    off = math.hypot(fix.msg.x_mm - x, fix.msg.y_mm - y)
-                    if floor != fix.msg.floor:
-                        off = math.inf
-                    self.fix_errors.append((ctx.clock.now(), fix.msg.camera_id, off))
-                await ctx.clock.sleep(SAMPLE_S)
+        async with asyncio.TaskGroup() as group:
+            group.create_task(self._judge_fixes(ctx))
+            with (
+                ctx.board.subscribe(DELIVERY_STATUS) as reports,
+                ctx.board.subscribe(LEASE_NEED) as needs,
+            ):
+                while True:
+                    while (report := reports.get_nowait()) is not None:
+                        if report.msg.status in AT_THE_DOOR:
+                            self.at_door.add(report.msg.order_id)
+                    while (need := needs.get_nowait()) is not None:
+                        if need.msg.place == "elevator" and need.msg.want:
+                            self.elevator_asked_s.append(ctx.clock.now())
+                    await ctx.clock.sleep(SAMPLE_S)
+
+    async def _judge_fixes(self, ctx: ModuleContext) -> None:
+        """Each fix as it arrives (it is the pose at that moment) against the truth then."""
+        with ctx.board.subscribe(CAMERA_FIX) as fixes:
+            async for fix in fixes:
+                if self.truth is None:
+                    continue
+                floor, x, y = self.truth()
+                off = math.hypot(fix.msg.x_mm - x, fix.msg.y_mm - y)
+                self.fix_errors.append(
+                    (
+                        ctx.clock.now(),
+                        fix.msg.camera_id,
+                        off if floor == fix.msg.floor else math.inf,
+                    )
+                )
 
 
 @dataclass
