@@ -100,6 +100,31 @@ def test_a_track_not_seen_ends_after_the_timeout_and_its_id_is_not_reused() -> N
     assert [t.id for t in tracker.update([seen(back_s, 1000.0, 1000.0)], back_s)] == ["lab-2"]
 
 
+def test_a_track_last_seen_leaving_the_view_ends_sooner_and_a_newcomer_gets_a_new_id() -> None:
+    """A robot drives out through the image's border (its last blobs cut by it); 1.2 s later
+    someone steps in there, 450 mm from where it was last seen: a new track, not the robot's.
+    A track that vanished inside the view (occluded) still waits the full timeout."""
+    tracker = Tracker(SETTINGS)
+    for k in range(10):
+        t_s = k * PERIOD_S
+        tracker.update(
+            [seen(t_s, 1000.0 + 200.0 * t_s, 0.0, cut=k >= 7), seen(t_s, 5000.0, 0.0)], t_s
+        )
+    gone_s = 0.9 + SETTINGS.left_view_after_s + PERIOD_S / 2
+    assert [t.id for t in tracker.update([seen(gone_s, 5000.0, 0.0)], gone_s)] == ["lab-2"]
+    newcomer_s = 2.1
+    tracks = tracker.update([seen(newcomer_s, 1180.0, 440.0, cut=True)], newcomer_s)
+    assert [t.id for t in tracks] == ["lab-2", "lab-3"]
+
+
+def test_a_track_last_seen_leaving_the_view_keeps_its_id_through_a_few_missed_frames() -> None:
+    tracker = Tracker(SETTINGS)
+    for k in [*range(8), *range(11, 15)]:
+        t_s = k * PERIOD_S
+        tracks = tracker.update([seen(t_s, 1000.0 + 200.0 * t_s, 0.0, cut=k >= 5)], t_s)
+        assert [t.id for t in tracks] == ["lab-1"]
+
+
 def test_resample_interpolates_and_leaves_what_it_never_saw_unknown() -> None:
     tracker = Tracker(SETTINGS)
     for t_s, x, y in [(1.0, 0.0, 0.0), (1.1, 100.0, 50.0), (1.3, 100.0, 250.0)]:
