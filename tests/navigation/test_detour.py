@@ -133,10 +133,10 @@ def test_a_narrow_return_gets_the_narrow_margin_and_a_wide_one_does_not() -> Non
     # Seen by the left half of the row only: the edge of something wide (a box in the
     # left half of the lane) as well as a pole, so no margin either.
     half = planner_seeing({4: 700, 5: 700}, seen_for_s=0.5, narrow=True).costmap
-    assert set(pole.margins(0.5)) == {MARGIN}
-    assert set(plain.margins(0.5)) == {0.0}
-    assert set(wide.margins(0.5)) == {0.0}
-    assert half.margins(0.5).size > 0 and set(half.margins(0.5)) == {0.0}
+    assert set(pole.obstacles(0.5).margins) == {MARGIN}
+    assert set(plain.obstacles(0.5).margins) == {0.0}
+    assert set(wide.obstacles(0.5).margins) == {0.0}
+    assert half.obstacles(0.5).margins.size > 0 and set(half.obstacles(0.5).margins) == {0.0}
     x, y = FLOOR.from_hallway(START_S, LANE)
     pose = (np.array([x]), np.array([y]), np.array([np.radians(FLOOR.hallway.heading_deg)]))
     gap_pole = pole.obstacle_gaps(*pose, now=0.5)[0]
@@ -165,7 +165,7 @@ def test_a_narrow_return_is_placed_at_the_near_end_of_its_spread() -> None:
         FLOOR.hallway.heading_deg,
         0.0,
     )
-    xs, ys, _ = module.costmap.obstacles(0.0)
+    xs, ys, _, _ = module.costmap.obstacles(0.0)
     along = np.array([FLOOR.to_hallway(cx, cy)[0] for cx, cy in zip(xs, ys, strict=True)])
     sensor = next(s for s in CONFIG.tof.sensors if s.id == 3)
     nearest = along.min() - START_S - sensor.x_mm
@@ -184,7 +184,7 @@ def test_a_detour_round_a_narrow_thing_keeps_the_overhang_margin() -> None:
         planner.update(FLOOR, START_S, LANE, LANE, 1.0, avoid=True, now=3.0)
     assert narrow.lane_mm is not None and plain.lane_mm is not None
     assert narrow.lane_mm >= plain.lane_mm + MARGIN - CONFIG.motion.costmap_resolution_mm
-    xs, ys, _ = narrow.costmap.obstacles(3.0)
+    xs, ys, _, _ = narrow.costmap.obstacles(3.0)
     cells_d = np.array([FLOOR.to_hallway(cx, cy)[1] for cx, cy in zip(xs, ys, strict=True)])
     body = CONFIG.geometry.width_mm / 2 + CONFIG.motion.obstacle_clearance_mm
     assert np.all(np.abs(cells_d - narrow.lane_mm) >= body + MARGIN)
@@ -201,7 +201,7 @@ def test_a_pole_beside_the_lane_whose_seat_reaches_into_it_is_in_the_way() -> No
     narrow = planner_seeing(reading, seen_for_s=0.5, narrow=True)
     plain = planner_seeing(reading, seen_for_s=0.5, narrow=False)
     # Move the lane left until the plain return is just out of it.
-    xs, ys, _ = plain.costmap.obstacles(0.5)
+    xs, ys, _, _ = plain.costmap.obstacles(0.5)
     cells_d = np.array([FLOOR.to_hallway(cx, cy)[1] for cx, cy in zip(xs, ys, strict=True)])
     half = CONFIG.geometry.width_mm / 2 + CONFIG.motion.obstacle_clearance_mm
     lane = float(cells_d.max()) + half + 10.0

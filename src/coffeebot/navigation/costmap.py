@@ -48,6 +48,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, replace
+from typing import NamedTuple
 
 import numpy as np
 
@@ -93,6 +94,17 @@ class Footprint:
         dx = np.maximum(np.abs(local_x - centre) - half - centre, 0.0)
         dy = np.maximum(np.abs(local_y) - self.width_mm / 2.0, 0.0)
         return np.hypot(dx, dy)
+
+
+class Obstacles(NamedTuple):
+    """What the costmap holds as obstacles, one entry per occupied cell or camera point."""
+
+    xs: np.ndarray
+    ys: np.ndarray
+    since: np.ndarray
+    """Since when each has been occupied (s)."""
+    margins: np.ndarray
+    """The clearance each needs beyond everything else's (mm)."""
 
 
 class LocalCostmap:
@@ -381,23 +393,19 @@ class LocalCostmap:
         i, j = np.nonzero(occupied)
         return i, j
 
-    def obstacles(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Centres (x, y) of occupied cells, then the camera layer's points, and since when
-        each has been occupied."""
+    def obstacles(self, now: float) -> Obstacles:
+        """Centres of occupied cells, then the camera layer's points: where, since when, and
+        the clearance each needs beyond everything else's (``narrow_margin_mm`` for a narrow
+        return's cell, else 0)."""
         i, j = self._occupied(now)
         camera_x, camera_y, camera_since = self._camera_points(now)
-        xs = np.concatenate([self.origin[0] + (i + 0.5) * self.res, camera_x])
-        ys = np.concatenate([self.origin[1] + (j + 0.5) * self.res, camera_y])
-        return xs, ys, np.concatenate([self.since_t[i, j], camera_since])
-
-    def margins(self, now: float) -> np.ndarray:
-        """Per occupied cell or camera point, in the order of :meth:`obstacles`: the clearance
-        it needs beyond everything else's (``narrow_margin_mm`` for a narrow return's cell,
-        else 0)."""
-        i, j = self._occupied(now)
         pole = now - self.pole_t[i, j] <= self.cfg.obstacle_memory_s
-        camera = np.zeros(self._camera_points(now)[0].size)
-        return np.concatenate([np.where(pole, self.narrow_margin_mm, 0.0), camera])
+        return Obstacles(
+            np.concatenate([self.origin[0] + (i + 0.5) * self.res, camera_x]),
+            np.concatenate([self.origin[1] + (j + 0.5) * self.res, camera_y]),
+            np.concatenate([self.since_t[i, j], camera_since]),
+            np.concatenate([np.where(pole, self.narrow_margin_mm, 0.0), np.zeros(camera_x.size)]),
+        )
 
     # --- cost queries ----------------------------------------------------------------------
 
@@ -412,8 +420,7 @@ class LocalCostmap:
         """For each pose, the smallest gap between the body (``footprint``, by default the
         planner's, front extension included) and an obstacle cell (inf: none); a narrow
         return's cell counts ``narrow_margin_mm`` nearer than it is, for what it may carry."""
-        ox, oy, _ = self.obstacles(now)
-        margins = self.margins(now)
+        ox, oy, _, margins = self.obstacles(now)
         if ox.size == 0:
             return np.full(np.shape(xs), math.inf)
         dx = ox[None, :] - np.ravel(xs)[:, None]

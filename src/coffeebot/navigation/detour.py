@@ -181,8 +181,7 @@ class DetourPlanner:
         """The lane nearest to ``lane`` whose corridor past the obstacle is free, if any;
         ``settled``: of the cells that have stood still for ``static_confirm_s``."""
         cfg = self.cfg
-        xs, ys, since = self.costmap.obstacles(now)
-        margins = self.costmap.margins(now)
+        xs, ys, since, margins = self.costmap.obstacles(now)
         if settled:
             keep = since <= now - cfg.static_confirm_s
             xs, ys, margins = xs[keep], ys[keep], margins[keep]
@@ -206,10 +205,9 @@ class DetourPlanner:
         """The nearest obstacle cell in the lane ahead (a narrow return's nearer by its
         margin, and in the lane when what it may carry reaches into it) and whether it has
         stood still."""
-        xs, ys, since = self.costmap.obstacles(now)
+        xs, ys, since, margins = self.costmap.obstacles(now)
         if xs.size == 0:
             return None
-        margins = self.costmap.margins(now)
         sd = np.array([floor.to_hallway(x, y) for x, y in zip(xs, ys, strict=True)])
         along = (sd[:, 0] - s) * direction
         reach = along - margins
