@@ -22,8 +22,9 @@ What it measures, on the simulated clock:
 - ``contacts``: any touch of a robot's body, in either strategy's run;
 - ``elevator_wait_p95_s``: from a robot's asking for the elevator (at its door) until it is
   inside the car, the car's own travel included;
-- with ``--cameras``, per run (``--save``): every ceiling-camera fix a robot received
-  against where it truly was (p95, max, and each one over 300 mm or for the wrong floor);
+- per run (``--save``): each robot's estimate as the state module publishes it against where
+  the robot truly was (p95, and the largest with when and where), and with ``--cameras``
+  every ceiling-camera fix it received (p95, max, each over 300 mm or for the wrong floor);
 - ``joint_p95_s``, ``greedy_p95_s``: the wait p95 of each strategy's run (greedy: null where
   it was not run).
 
@@ -67,7 +68,13 @@ from coffeebot.cpu import BOARD_NAME
 from coffeebot.fleet.mosquitto import DISPATCHER_USER, Mosquitto, mosquitto
 from coffeebot.floorplan import load_floorplan
 from coffeebot.logs import LogfmtFormatter, RobotTag
-from coffeebot.messages import CAMERA_FIX, DELIVERY_STATUS, LEASE_NEED, OrderStatus
+from coffeebot.messages import (
+    CAMERA_FIX,
+    CURRENT_STATE,
+    DELIVERY_STATUS,
+    LEASE_NEED,
+    OrderStatus,
+)
 from coffeebot.modules.base import Module, ModuleContext
 from coffeebot.runtime.fleet import FleetSim, build_fleet_sim, robot_ids, serve_fleet
 from coffeebot.scenario.spec import Staff
@@ -114,8 +121,8 @@ class Case:
 @dataclass
 class Probe(Module):
     """On a robot's board: when it asked for the elevator, which orders it got to the door,
-    and how far each camera fix it received was from where it truly was (``truth``: the
-    simulated robot's floor and position, set once the fleet is built)."""
+    and how far its estimate and each camera fix it received were from where it truly was
+    (``truth``: the simulated robot's floor and position, set once the fleet is built)."""
 
     name = "bench_probe"
     inputs = (DELIVERY_STATUS, LEASE_NEED, CAMERA_FIX)
@@ -125,10 +132,13 @@ class Probe(Module):
     truth: Callable[[], tuple[int, float, float]] | None = None
     fix_errors: list[tuple[float, str, float]] = field(default_factory=list)
     """(simulated second, camera, distance mm) of every fix received."""
+    pose_errors: list[tuple[float, int, float, float, float]] = field(default_factory=list)
+    """(simulated second, floor, true x, true y, distance mm) of every estimate published."""
 
     async def run(self, ctx: ModuleContext) -> None:
         async with asyncio.TaskGroup() as group:
             group.create_task(self._judge_fixes(ctx))
+            group.create_task(self._judge_estimates(ctx))
             with (
                 ctx.board.subscribe(DELIVERY_STATUS) as reports,
                 ctx.board.subscribe(LEASE_NEED) as needs,
@@ -141,6 +151,19 @@ class Probe(Module):
                         if need.msg.place == "elevator" and need.msg.want:
                             self.elevator_asked_s.append(ctx.clock.now())
                     await ctx.clock.sleep(SAMPLE_S)
+
+    async def _judge_estimates(self, ctx: ModuleContext) -> None:
+        """The state module's estimate as it is published against the truth then (the
+        robots' own sensors read each other as walls and people)."""
+        with ctx.board.subscribe(CURRENT_STATE) as states:
+            async for state in states:
+                pose = state.msg.pose
+                if self.truth is None or not pose.initialised:
+                    continue
+                floor, x, y = self.truth()
+                if floor == pose.floor:
+                    off = math.hypot(pose.x_mm - x, pose.y_mm - y)
+                    self.pose_errors.append((ctx.clock.now(), floor, x, y, off))
 
     async def _judge_fixes(self, ctx: ModuleContext) -> None:
         """Each fix as it arrives (it is the pose at that moment) against the truth then."""
@@ -300,6 +323,17 @@ async def drive(
         "elevator_rides": len(elevator),
         "elevator_wait_p95_s": percentile(elevator, 95),
         "contacts": contacts,
+        "pose_error_mm_p95": percentile(
+            [e for p in probes.values() for *_, e in p.pose_errors], 95
+        ),
+        "pose_error_worst": max(
+            (
+                (round(e), f"{name} at {t:.1f} s on floor {floor} at ({x:.0f}, {y:.0f})")
+                for name, probe in probes.items()
+                for t, floor, x, y, e in probe.pose_errors
+            ),
+            default=None,
+        ),
         "camera_fixes": len(fix_errors := [e for p in probes.values() for e in p.fix_errors]),
         "camera_fix_error_mm_p95": percentile(
             [e for _, _, e in fix_errors if math.isfinite(e)], 95
@@ -445,21 +479,27 @@ def print_table(result: dict[str, Any], runs: list[dict[str, Any]], elapsed: flo
     )
     print("|---|---:|---:|---|---:|---:|---:|")
     for r in runs:
-        label = f"{r['robots']} x {r['orders_per_h']:g}/h {r['strategy']}"
         print(
-            f"| {label} | {r['simulated_s']:.0f} | {r['wall_s']:.0f} | {len(r['failed'])} "
+            f"| {_label(r)} | {r['simulated_s']:.0f} | {r['wall_s']:.0f} | {len(r['failed'])} "
             f"| {r['broker_msgs_per_s_per_robot']} | {r['broker_bytes_per_s_per_robot']} "
             f"| {r['dispatcher_cpu_pct_per_robot']} |"
         )
     for r in runs:
+        print(
+            f"\n{_label(r)}: estimate's error p95 {r['pose_error_mm_p95']} mm, "
+            f"largest {r['pose_error_worst']}"
+        )
         if r["camera_fixes"]:
-            label = f"{r['robots']} x {r['orders_per_h']:g}/h {r['strategy']}"
             print(
-                f"\n{label}: {r['camera_fixes']} camera fixes, error p95 "
+                f"{_label(r)}: {r['camera_fixes']} camera fixes, error p95 "
                 f"{r['camera_fix_error_mm_p95']} mm, max {r['camera_fix_error_mm_max']} mm; "
                 f"over 300 mm: {', '.join(r['camera_fixes_over_300mm']) or 'none'}"
             )
     print(f"\n{elapsed / 60:.1f} min")
+
+
+def _label(run: dict[str, Any]) -> str:
+    return f"{run['robots']} x {run['orders_per_h']:g}/h {run['strategy']}"
 
 
 def int_list(text: str) -> list[int]:
