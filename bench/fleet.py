@@ -125,7 +125,7 @@ class Probe(Module):
     (``truth``: the simulated robot's floor and position, set once the fleet is built)."""
 
     name = "bench_probe"
-    inputs = (DELIVERY_STATUS, LEASE_NEED, CAMERA_FIX)
+    inputs = (DELIVERY_STATUS, LEASE_NEED, CAMERA_FIX, CURRENT_STATE)
 
     elevator_asked_s: list[float] = field(default_factory=list)
     at_door: set[str] = field(default_factory=set)
