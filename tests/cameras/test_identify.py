@@ -409,6 +409,47 @@ def test_waypoints_where_the_blob_was_cut_by_the_border_are_left_out_of_the_fit(
     assert as_seen.matched["bravo"].track_id == "t1", "the wrong match the mask prevents"
 
 
+def test_a_robot_is_not_named_on_a_track_whose_newest_blob_is_cut_but_it_still_rivals() -> None:
+    """Driving out of view, the robot's newest blobs are cut by the border: what its track
+    follows now may be something else (another robot driving in, merged with it there), so
+    no fix comes from it; it still keeps a robot that fits it too off the other track."""
+    rng = np.random.default_rng(13)
+    alpha = drive((1000.0, 1000.0, 0.0), 300.0, 0.0)
+    bravo = drive((1000.0, 2000.0, 0.0), 300.0, 0.0)
+    leaving = camera_track(alpha, rng, 5.0)
+    leaving[-3:] = np.nan
+    tracks = {"t1": leaving, "t2": camera_track(bravo, rng, 5.0)}
+    robots = {"alpha": odometry_of(alpha), "bravo": odometry_of(bravo)}
+
+    alone = identify({"t1": leaving}, {"alpha": robots["alpha"]}, RULES)
+    assert alone.matched == {}
+    assert alone.refused["alpha"] == "its track is cut by the image's border now: t1"
+
+    result = identify(tracks, robots, RULES)
+    assert result.matched == {}
+    assert result.refused["alpha"] == "ambiguous: tracks t2 and t1 fit within 2x"
+
+
+def test_after_its_blob_was_cut_a_track_names_only_from_what_it_saw_since() -> None:
+    """Two robots meet at the image's border, merged and cut there, and part with the track
+    gone on with bravo: the waypoints before the cut were alpha's. Alpha is not named on it
+    (its older waypoints would fit), bravo is once it has enough whole ones since."""
+    rng = np.random.default_rng(14)
+    alpha = drive((1000.0, 1000.0, 0.0), 300.0, 0.25)
+    bravo = drive((1000.0, 1400.0, 0.3), 300.0, 0.0)
+    swapped = camera_track(alpha, rng, 5.0)
+    swapped[20:25] = np.nan
+    swapped[25:] = camera_track(bravo, rng, 5.0)[25:]
+    robots = {"alpha": odometry_of(alpha), "bravo": odometry_of(bravo)}
+    assert fit_similarity(robots["alpha"][:20, :2], swapped[:20]).error_mm < 20.0
+
+    result = identify({"t1": swapped}, robots, RULES)
+
+    assert "alpha" not in result.matched
+    assert result.matched["bravo"].track_id == "t1"
+    assert math.dist(result.matched["bravo"].pose[:2], bravo[-1, :2]) < 15.0
+
+
 def test_a_track_seen_whole_too_briefly_is_neither_a_match_nor_a_rival() -> None:
     rng = np.random.default_rng(12)
     alpha = drive((500.0, 1500.0, 0.2), 350.0, 0.1)

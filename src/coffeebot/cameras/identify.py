@@ -250,7 +250,7 @@ def identify(
     settles nothing.
     """
     _check_paths(tracks, robots)
-    seen = {track_id: np.asarray(path, dtype=float) for track_id, path in tracks.items()}
+    seen = _pieces({track_id: np.asarray(path, dtype=float) for track_id, path in tracks.items()})
     odometry = {robot_id: np.asarray(path, dtype=float) for robot_id, path in robots.items()}
     robot_ids, track_ids = list(odometry), list(seen)
     whole = {t: ~np.isnan(path).any(axis=1) for t, path in seen.items()}
@@ -279,7 +279,13 @@ def identify(
     spreads = np.array([_spread_mm(odometry[r][:, :2]) for r in robot_ids]).reshape(-1, 1)
     scale_ok = np.abs(scales / rules.expected_scale - 1.0) <= rules.scale_tolerance
     plausible = moved & scale_ok
-    admissible = plausible & (errors <= rules.gate_mm)
+    # Named only on a track that sees its object whole now: one whose newest blob is cut by
+    # the border (or merged there) may follow something else than the waypoints it was fitted
+    # on. It still rivals, as does what a track followed before its last cut (_pieces).
+    whole_now = np.array([bool(whole[t][-1]) if len(whole[t]) else False for t in track_ids])
+    within_gate = plausible & (errors <= rules.gate_mm)
+    admissible = within_gate & whole_now.reshape(1, -1)
+    fits_but_cut = within_gate & ~admissible
     agrees, refutes = _against_estimates(fits, robot_ids, estimates or {}, rules)
     has_estimate = np.array([r in (estimates or {}) for r in robot_ids]).reshape(-1, 1)
 
@@ -299,6 +305,9 @@ def identify(
             refused[robot_id] = (
                 f"did not move enough ({spreads[i, 0]:.0f} mm < {rules.min_motion_mm:.0f} mm)"
             )
+        elif i not in assigned and not admissible[i].any() and fits_but_cut[i].any():
+            names = ", ".join(track_ids[j] for j in _indices(fits_but_cut[i]))
+            refused[robot_id] = f"its track is cut by the image's border now: {names}"
         elif i not in assigned:
             refused[robot_id] = _why_unassigned(
                 i, errors, admissible, assigned, robot_ids, track_ids, rules
@@ -316,7 +325,34 @@ def identify(
                 pose = similarity.to_floor(odometry[robot_id][-1])
                 matched[robot_id] = Match(track_ids[j], similarity, FloorPose(*map(float, pose)))
     taken = {match.track_id for match in matched.values()}
-    return Identification(matched, refused, [t for t in track_ids if t not in taken])
+    return Identification(matched, refused, [t for t in tracks if t not in taken])
+
+
+EARLIER = " (before its blob was cut)"
+"""Appended to a track's id for what it followed before its last cut stretch."""
+
+
+def _pieces(tracks: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Each track from its last cut stretch on, under its own id, and what it followed before
+    that as a rival only, under the id with ``EARLIER``. While its blob was cut by the border
+    (its NaN rows) the track may have gone on with something else: two robots merged at the
+    border and parted with their tracks swapped, and the first was named on the second's
+    track from its own older waypoints."""
+    pieces: dict[str, np.ndarray] = {}
+    for track_id, path in tracks.items():
+        cut = np.isnan(path).any(axis=1)
+        seen_whole = np.flatnonzero(~cut)
+        gaps = np.flatnonzero(cut)
+        gaps = gaps[gaps > seen_whole[0]] if seen_whole.size else gaps[:0]
+        if not gaps.size or cut[-1]:
+            pieces[track_id] = path  # cut now: a rival only, as a whole (see identify)
+            continue
+        after, before = path.copy(), path.copy()
+        after[: gaps[-1] + 1] = np.nan
+        before[gaps[-1] :] = np.nan
+        pieces[track_id] = after
+        pieces[track_id + EARLIER] = before
+    return pieces
 
 
 def _fit_where_seen(
