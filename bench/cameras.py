@@ -761,7 +761,6 @@ def run_trial(
     ]
     view = View(camera, spec.height_mm)
     off = estimate_errors(plan, estimates)
-    claim = ((ESTIMATE_SIGMA_MM[0] ** 2, 0.0), (0.0, ESTIMATE_SIGMA_MM[1] ** 2))
     per_frame = round(TELEMETRY_HZ / fps)
     owners: dict[str, str | None] = {}
     pipeline_s = identify_s = 0.0
@@ -791,7 +790,9 @@ def run_trial(
             ):
                 run.moved_in_view_s = since_s
         own = {
-            robot.name: OwnEstimate(t_s, plan.floor, robot.pose[0] + dx, robot.pose[1] + dy, claim)
+            robot.name: OwnEstimate.from_sigmas(
+                t_s, plan.floor, robot.pose[0] + dx, robot.pose[1] + dy, *ESTIMATE_SIGMA_MM
+            )
             for robot in robots
             if off is not None
             for dx, dy in [off[robot.name]]

@@ -8,9 +8,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from coffeebot.board import Envelope
 from coffeebot.cameras.identify import Estimate
 from coffeebot.cameras.odometry_path import PosePath
-from coffeebot.messages import PoseEstimate
+from coffeebot.messages import CurrentState, PoseEstimate
 
 
 @dataclass(frozen=True)
@@ -29,15 +30,30 @@ class OwnEstimate:
         """``pose`` published at ``t_s``; None while the robot is not localized."""
         if not pose.initialised:
             return None
+        return cls.from_sigmas(
+            t_s, pose.floor, pose.x_mm, pose.y_mm, pose.sigma_x_mm, pose.sigma_y_mm, pose.cov_xy_mm2
+        )
+
+    @classmethod
+    def published(cls, state: Envelope[CurrentState] | None) -> OwnEstimate | None:
+        """The state module's newest estimate, at the moment it was published (None before
+        the first, or while the robot is not localized)."""
+        return None if state is None else cls.of(state.msg.pose, state.stamp)
+
+    @classmethod
+    def from_sigmas(
+        cls,
+        t_s: float,
+        floor: int,
+        x_mm: float,
+        y_mm: float,
+        sigma_x_mm: float,
+        sigma_y_mm: float,
+        cov_xy_mm2: float = 0.0,
+    ) -> OwnEstimate:
+        """From the position's 1-sigmas and x-y covariance, as poses and messages carry it."""
         return cls(
-            t_s=t_s,
-            floor=pose.floor,
-            x_mm=pose.x_mm,
-            y_mm=pose.y_mm,
-            covariance_mm2=(
-                (pose.sigma_x_mm**2, pose.cov_xy_mm2),
-                (pose.cov_xy_mm2, pose.sigma_y_mm**2),
-            ),
+            t_s, floor, x_mm, y_mm, ((sigma_x_mm**2, cov_xy_mm2), (cov_xy_mm2, sigma_y_mm**2))
         )
 
     @property

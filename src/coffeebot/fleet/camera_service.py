@@ -233,11 +233,12 @@ def _own(sample: PositionSample | None, offset_s: float) -> OwnEstimate | None:
     """A robot's estimate from the wire, on the service's clock."""
     if sample is None:
         return None
-    cov = sample.cov_xy_mm2
-    return OwnEstimate(
-        t_s=sample.t_s - offset_s,
-        floor=sample.floor,
-        x_mm=sample.x_mm,
-        y_mm=sample.y_mm,
-        covariance_mm2=((sample.sigma_x_mm**2, cov), (cov, sample.sigma_y_mm**2)),
+    return OwnEstimate.from_sigmas(
+        sample.t_s - offset_s,
+        sample.floor,
+        sample.x_mm,
+        sample.y_mm,
+        sample.sigma_x_mm,
+        sample.sigma_y_mm,
+        sample.cov_xy_mm2,
     )

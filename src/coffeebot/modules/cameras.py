@@ -75,7 +75,7 @@ class CameraModule(Module):
                     now = ctx.clock.now()
                     frames = await service.grab(now)
                     self._take_odometry(odometry)
-                    robot = Robot(self.path, self._estimate(ctx))
+                    robot = Robot(self.path, OwnEstimate.published(ctx.board.latest(CURRENT_STATE)))
                     seen = await service.see(frames, now, {ROBOT: robot})
                     for found in seen.fixes:
                         ctx.board.publish(CAMERA_FIX, found.fix)
@@ -88,8 +88,3 @@ class CameraModule(Module):
     def _take_odometry(self, odometry: Subscription[Odometry]) -> None:
         while (envelope := odometry.get_nowait()) is not None:
             self.path.add(envelope.msg, envelope.stamp)
-
-    @staticmethod
-    def _estimate(ctx: ModuleContext) -> OwnEstimate | None:
-        state = ctx.board.latest(CURRENT_STATE)
-        return None if state is None else OwnEstimate.of(state.msg.pose, state.stamp)

@@ -354,8 +354,7 @@ class FleetBridge(Module):
     ) -> None:
         """The path to the camera service every ``BATCH_S``, with the robot's estimate."""
         while True:
-            state = ctx.board.latest(CURRENT_STATE)
-            estimate = None if state is None else OwnEstimate.of(state.msg.pose, state.stamp)
+            estimate = OwnEstimate.published(ctx.board.latest(CURRENT_STATE))
             batch = cameras.batch(fleet_offset(ctx.clock, self.fleet_clock), estimate)
             if batch is not None:
                 await client.publish(self.topic("odometry"), encode(batch), qos=QOS["odometry"])
