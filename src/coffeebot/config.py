@@ -831,6 +831,15 @@ class MotionConfig(Section):
         le=DISTANCE_MM,
         description="least gap kept to an obstacle, for the same reason",
     )
+    turn_clearance_mm: float = Field(
+        50.0,
+        ge=0,
+        le=DISTANCE_MM,
+        description="least gap a turn on the spot keeps to the plan's walls all the way round "
+        "(the seed's side sphere; the rear corners swing out where no sensor looks): a turn "
+        "with less is not begun. To what the sensors saw it keeps any gap: their cells already "
+        "lie on the robot's side of it (a car's back wall 30-80 mm nearer than it stands)",
+    )
     inflation_mm: float = Field(
         400.0, ge=0, le=DISTANCE_MM, description="cost decays to zero over this"
     )

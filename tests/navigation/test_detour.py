@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from helpers import CONFIG, PLAN
+from helpers import CONFIG, PLAN, estimate_at
 
-from coffeebot.messages import RangeReading, RangeScan, ReadingStatus
+from coffeebot.messages import MotionState, MoveInstruction, RangeReading, RangeScan, ReadingStatus
 from coffeebot.modules.motion import MotionModule
 from coffeebot.navigation.costmap import LocalCostmap
 from coffeebot.navigation.detour import REJOIN_MM, Detour, DetourPlanner, Phase
 from coffeebot.navigation.dwa import rollout
+from coffeebot.navigation.motion import Command
 
 FLOOR = PLAN.floor(2)
 HALF_WIDTH = FLOOR.hallway.width_mm / 2
@@ -23,12 +24,20 @@ BOX_MM = 1200
 def planner_with_box(seen_for_s: float) -> DetourPlanner:
     """The detour of a robot at ``START_S`` in ``LANE`` whose front sensors have seen a box
     ahead for ``seen_for_s`` seconds."""
+    return module_with_box(seen_for_s).controller.detour
+
+
+def module_with_box(
+    seen_for_s: float, box_mm: float = BOX_MM, seeing: frozenset[int] = frozenset({2, 3})
+) -> MotionModule:
+    """The motion module of a robot at ``START_S`` in ``LANE`` whose front sensors
+    ``seeing`` (by default the right-hand ones: the box stands in the right half) have seen
+    a box ``box_mm`` ahead for ``seen_for_s`` seconds."""
     module = MotionModule(CONFIG, PLAN)
     x, y = FLOOR.from_hallway(START_S, LANE)
     module.costmap.reset(FLOOR, x, y)
-    seeing = {2, 3}  # the right-hand front sensors: the box stands in the right half
     readings = [
-        RangeReading(sensor=s.id, status=ReadingStatus.VALID, distance_mm=BOX_MM)
+        RangeReading(sensor=s.id, status=ReadingStatus.VALID, distance_mm=box_mm)
         if s.id in seeing
         else RangeReading(sensor=s.id, status=ReadingStatus.OUT_OF_BOUNDS)
         for s in CONFIG.tof.sensors
@@ -36,7 +45,7 @@ def planner_with_box(seen_for_s: float) -> DetourPlanner:
     scan = RangeScan(cycle_start_s=0.0, cycle_time_s=0.05, readings=readings)
     for t in np.arange(0.0, seen_for_s, 0.05):
         module.costmap.update(scan, FLOOR, x, y, FLOOR.hallway.heading_deg, float(t))
-    return module.controller.detour
+    return module
 
 
 def test_an_obstacle_just_seen_is_confirmed_before_it_is_gone_round() -> None:
@@ -57,6 +66,42 @@ def test_a_static_obstacle_is_gone_round_in_a_free_lane_past_its_extent() -> Non
     assert planner.lane_mm is not None and planner.lane_mm > LANE + REJOIN_MM  # to the left
     extent = planner.detour.extent_s_mm
     assert extent is not None and extent > sighting.s_mm
+
+
+def test_a_robot_beyond_where_this_one_stops_is_neither_waited_for_nor_gone_round() -> None:
+    """A robot waiting for the tea room short of its door swerved round the robot coming out
+    of the door beyond its stop, and stood off its lane when its turn came. Something further
+    than the robot would wait from it after the stop does not change where it stops: it
+    drives on in its lane. Stopping nearer than that, it waits to go round, as before."""
+    ahead_mm, wide = 1400.0, frozenset({2, 3, 4, 5})  # across the lane: all four see it
+    module = module_with_box(seen_for_s=3.0, box_mm=ahead_mm, seeing=wide)
+    sighting = module.controller.detour.obstacle_ahead(FLOOR, START_S, LANE, 1.0, 3.0)
+    assert sighting is not None and sighting.static
+    waits_at = sighting.near_edge(1.0) - module.controller.detour.wait_distance_mm()
+    x, y = FLOOR.from_hallway(START_S, LANE)
+    pose = estimate_at(2, x, y, FLOOR.hallway.heading_deg)
+
+    def step_to(target_s: float) -> list[Command]:
+        controller = module_with_box(seen_for_s=3.0, box_mm=ahead_mm, seeing=wide).controller
+        instruction = MoveInstruction(
+            id=1,
+            action="follow_lane",
+            floor=2,
+            target_s_mm=target_s,
+            lane_mm=LANE,
+            stop=True,
+            avoid=True,
+        )
+        return [controller.step(instruction, pose, 3.0 + 0.05 * k, 0.05, 500.0) for k in range(5)]
+
+    assert waits_at - 200.0 > START_S + 200.0
+    short = step_to(waits_at - 200.0)
+    assert all(c.status.state is MotionState.MOVING for c in short)
+    assert all("obstacle" not in c.status.detail for c in short)
+    assert short[-1].speed_mm_s > 0.0 and abs(short[-1].yaw_rate_dps) < 1.0
+    near = step_to(waits_at + 200.0)
+    # Closing in to wait in front of it: no lane past a robot across the hallway.
+    assert near[-1].status.detail == "no way past the obstacle ahead, waiting"
 
 
 def test_not_allowed_to_leave_the_lane_it_stays_confirming() -> None:

@@ -96,6 +96,13 @@ class Footprint:
         return np.hypot(dx, dy)
 
 
+class Clearances(NamedTuple):
+    """The least gaps a path keeps to the plan's walls and to what the sensors saw."""
+
+    wall_mm: float
+    obstacle_mm: float
+
+
 class Obstacles(NamedTuple):
     """What the costmap holds as obstacles, one entry per occupied cell or camera point."""
 
@@ -467,11 +474,19 @@ class LocalCostmap:
         from_corners = segment_distances(seg, cx, cy).min(axis=1).reshape(-1, 4).min(axis=1)
         return np.minimum(from_ends, from_corners).reshape(shape)
 
-    def cost(self, obstacle_gap_mm: np.ndarray, wall_gap_mm: np.ndarray) -> np.ndarray:
-        """Inflated cost in [0, 1], ``inf`` where the pose is lethal."""
+    def cost(
+        self,
+        obstacle_gap_mm: np.ndarray,
+        wall_gap_mm: np.ndarray,
+        clearances: Clearances | None = None,
+    ) -> np.ndarray:
+        """Inflated cost in [0, 1], ``inf`` where the pose is lethal: nearer a wall or an
+        obstacle than its clearance (``clearances``, default the configured ones)."""
         cfg = self.cfg
-        wall_gap = wall_gap_mm - cfg.side_clearance_mm
-        obstacle_gap = obstacle_gap_mm - cfg.obstacle_clearance_mm
+        if clearances is None:
+            clearances = Clearances(cfg.side_clearance_mm, cfg.obstacle_clearance_mm)
+        wall_gap = wall_gap_mm - clearances.wall_mm
+        obstacle_gap = obstacle_gap_mm - clearances.obstacle_mm
         gap = np.minimum(wall_gap, obstacle_gap)
         cost = np.exp(-np.maximum(obstacle_gap, 0.0) / max(cfg.inflation_mm, 1.0))
         return np.where(gap < 0.0, math.inf, cost)
@@ -484,9 +499,11 @@ class LocalCostmap:
         start: tuple[float, float, float],
         now: float,
         footprint: Footprint | None = None,
+        clearances: Clearances | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """For paths of poses (rows over time) leaving ``start`` (x, y, heading rad): which
-        are admissible, and each one's worst cost (inf where not admissible).
+        are admissible, and each one's worst cost (inf where not admissible); ``clearances``
+        in place of the configured ones (:meth:`cost`).
 
         A path is admissible if no pose on it is lethal. From a start that is itself inside
         a lethal zone (the obstacle came closer, was seen late, or the pose estimate moved),
@@ -497,24 +514,29 @@ class LocalCostmap:
         """
         gaps = self.obstacle_gaps(xs, ys, thetas, now, footprint)
         walls = self.wall_gaps(xs, ys, thetas)
-        worst = self.cost(gaps, walls).max(axis=1)
+        worst = self.cost(gaps, walls, clearances).max(axis=1)
         hx, hy, htheta = (np.array([v]) for v in start)
         here_gap = float(self.obstacle_gaps(hx, hy, htheta, now, footprint)[0])
         here_wall = float(self.wall_gaps(hx, hy, htheta)[0])
+
+        def clear(obstacle_gaps: np.ndarray, wall_gaps: np.ndarray) -> np.ndarray:
+            """Per path (the last axis over time): never lethal."""
+            return np.asarray(np.isfinite(self.cost(obstacle_gaps, wall_gaps, clearances)).all(-1))
+
         none = np.array([math.inf])
-        inside_obstacle = not np.isfinite(self.cost(np.array([here_gap]), none)[0])
-        inside_wall = not np.isfinite(self.cost(none, np.array([here_wall]))[0])
+        inside_obstacle = not clear(np.array([here_gap]), none)
+        inside_wall = not clear(none, np.array([here_wall]))
         if not (inside_obstacle or inside_wall):
             return np.isfinite(worst), worst
         if inside_obstacle:
             # Never nearer to an obstacle: it may be a person, and the side stop is close.
             obstacle_ok = gaps.min(axis=1) >= here_gap - 1.0
         else:
-            obstacle_ok = np.isfinite(self.cost(gaps, np.full_like(walls, math.inf))).all(axis=1)
+            obstacle_ok = clear(gaps, np.full_like(walls, math.inf))
         if inside_wall:
             wall_ok = _escapes(walls, here_wall)
         else:
-            wall_ok = np.isfinite(self.cost(np.full_like(gaps, math.inf), walls)).all(axis=1)
+            wall_ok = clear(np.full_like(gaps, math.inf), walls)
         admissible = obstacle_ok & wall_ok
         return admissible, np.where(admissible, 1.0, math.inf)
 

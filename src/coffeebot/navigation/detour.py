@@ -19,6 +19,7 @@ past.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from enum import StrEnum
 
@@ -131,10 +132,12 @@ class DetourPlanner:
         direction: float,
         avoid: bool,
         now: float,
+        horizon_mm: float | None = None,
     ) -> Sighting | None:
         """One control period at hallway position ``s``, ``d`` keeping ``lane``: move the
-        detour through its phases; the nearest obstacle in the lane ahead, if any."""
-        sighting = self.obstacle_ahead(floor, s, lane, direction, now)
+        detour through its phases; the nearest obstacle in the lane ahead, if any, nearer
+        than ``horizon_mm`` (default: the lookahead)."""
+        sighting = self.obstacle_ahead(floor, s, lane, direction, now, horizon_mm)
         detour = self.detour
         if sighting is not None:
             if detour is None or detour.phase is Phase.REJOINING:
@@ -200,11 +203,17 @@ class DetourPlanner:
         return None
 
     def obstacle_ahead(
-        self, floor: Floor, s: float, lane: float, direction: float, now: float
+        self,
+        floor: Floor,
+        s: float,
+        lane: float,
+        direction: float,
+        now: float,
+        horizon_mm: float | None = None,
     ) -> Sighting | None:
-        """The nearest obstacle cell in the lane ahead (a narrow return's nearer by its
-        margin, and in the lane when what it may carry reaches into it) and whether it has
-        stood still."""
+        """The nearest obstacle cell in the lane ahead within ``horizon_mm`` (default: the
+        lookahead; a narrow return's nearer by its margin, and in the lane when what it may
+        carry reaches into it) and whether it has stood still."""
         xs, ys, since, margins = self.costmap.obstacles(now)
         if xs.size == 0:
             return None
@@ -217,6 +226,7 @@ class DetourPlanner:
             (np.abs(sd[:, 1] - lane) < half + margins)
             & (along + margins > -behind)
             & (reach < self.cfg.lookahead_mm)
+            & (reach < (math.inf if horizon_mm is None else horizon_mm))
         )
         if not in_lane.any():
             return None

@@ -36,7 +36,7 @@ from coffeebot.navigation.control import (
     ramp,
     turn_rate_dps,
 )
-from coffeebot.navigation.costmap import Footprint, LocalCostmap
+from coffeebot.navigation.costmap import Clearances, Footprint, LocalCostmap
 from coffeebot.navigation.detour import DetourPlanner, Phase, Sighting
 from coffeebot.navigation.dwa import DynamicWindow, rollout
 from coffeebot.navigation.others import standing_outlines
@@ -54,8 +54,12 @@ DETOUR_TURNS_DEG = tuple(45.0 - 2.5 * k for k in range(17))
 direction of travel towards the detour lane (the furthest of these the walls allow: the rear
 swings out about the axle), from where the dynamic window finds arcs past it."""
 
-TURN_CHECK_STEPS = 7
-"""Headings checked along a turn on the spot before it is made."""
+TURN_CHECK_DEG = 7.5
+"""Between the headings checked along a turn on the spot before it is made: a rear corner
+522 mm from the axle swings about 1 mm further out between two of them."""
+
+TURNING_DPS = 1.0
+"""Turning slower than this, the robot is taken to stand: a turn from here is checked first."""
 
 
 @dataclass(frozen=True)
@@ -202,7 +206,33 @@ class MotionController:
         if abs(error) <= self.cfg.heading_tolerance_deg:
             status = self._status(ins.id, MotionState.DONE, now, 0.0, "turned")
             return self._command(0.0, 0.0, dt, status, limit)
-        status = self._status(ins.id, MotionState.MOVING, now, None, f"turning, {error:.0f} deg")
+        return self._spin(ins, pose, wanted, now, dt, limit, None, f"turning, {error:.0f} deg")
+
+    def _spin(
+        self,
+        ins: MoveInstruction,
+        pose: PoseEstimate,
+        wanted: float,
+        now: float,
+        dt: float,
+        limit: float,
+        remaining: float | None,
+        detail: str,
+    ) -> Command:
+        """Turn on the spot towards ``wanted``. A turn is begun (from standstill, or again
+        after something stopped it) only if its sweep is admissible on the costmap: the
+        rear corners swing 522 mm about the axle, and a turn begun beside another robot or
+        too near a wall ends pressed against it (the collision monitor stops the turn, and
+        neither moves). Refused, the robot stands blocked until the sweep clears."""
+        spin_room = Clearances(wall_mm=self.cfg.turn_clearance_mm, obstacle_mm=0.0)
+        if abs(self.yaw_rate) < TURNING_DPS and not self._turn_is_free(
+            pose, wanted, now, spin_room
+        ):
+            error = wrap_deg(wanted - pose.heading_deg)
+            why = f"no room to turn, {error:.0f} deg"
+            status = self._status(ins.id, MotionState.BLOCKED, now, remaining, why)
+            return self._command(0.0, 0.0, dt, status, limit)
+        status = self._status(ins.id, MotionState.MOVING, now, remaining, detail)
         return self._command(0.0, self._turn_rate(pose.heading_deg, wanted), dt, status, limit)
 
     def _turn_rate(self, heading: float, wanted: float) -> float:
@@ -228,11 +258,10 @@ class MotionController:
         if remaining <= self.profile.stop_band_mm:
             status = self._status(ins.id, MotionState.DONE, now, remaining, "at the point")
             return self._command(0.0, 0.0, dt, status, limit)
-        status = self._status(ins.id, MotionState.MOVING, now, remaining, ins.detail)
         error = wrap_deg(self._line - pose.heading_deg)
         if abs(error) > AIM_BEFORE_DRIVING_DEG and self.speed < self.cfg.creep_speed_mm_s:
-            rate = self._turn_rate(pose.heading_deg, self._line)
-            return self._command(0.0, rate, dt, status, limit)
+            return self._spin(ins, pose, self._line, now, dt, limit, remaining, ins.detail)
+        status = self._status(ins.id, MotionState.MOVING, now, remaining, ins.detail)
         target = self.profile.target(remaining, ins.speed_mm_s or self.cfg.approach_speed_mm_s)
         heading = lane_heading_deg(self._line, left_of_line, self.cfg)
         rate = turn_rate_dps(pose.heading_deg, heading, self.cfg)
@@ -273,10 +302,7 @@ class MotionController:
             abs(wrap_deg(travel - pose.heading_deg)) > AIM_BEFORE_LANE_DEG
             and self.speed < cfg.creep_speed_mm_s
         ):
-            status = self._status(
-                ins.id, MotionState.MOVING, now, remaining, "turning into the lane"
-            )
-            return self._command(0.0, self._turn_rate(pose.heading_deg, travel), dt, status, limit)
+            return self._spin(ins, pose, travel, now, dt, limit, remaining, "turning into the lane")
         cruise = ins.speed_mm_s or cfg.cruise_speed_mm_s
         approach = cfg.approach_mm if ins.target_room is not None else 0.0
         target = self.profile.target(
@@ -292,7 +318,10 @@ class MotionController:
             if target <= 0:
                 why = f"letting {self.passing} pass before crossing the hallway"
                 status = self._status(ins.id, MotionState.WAITING, now, remaining, why)
-        sighting = self.detour.update(floor, s, d, lane, direction, ins.avoid, now)
+        # Something beyond where the robot stops anyway is neither waited for nor gone
+        # round: a robot waiting for the tea room swerved round one coming out of its door.
+        horizon = remaining + self.detour.wait_distance_mm() if ins.stop else None
+        sighting = self.detour.update(floor, s, d, lane, direction, ins.avoid, now, horizon)
         detour_lane = self.detour.lane_mm
         if self.detour.phase is Phase.CONFIRMING and sighting is not None:
             gap = (sighting.near_edge(direction) - s) * direction - self.detour.wait_distance_mm()
@@ -434,15 +463,19 @@ class MotionController:
         status = self._status(ins.id, MotionState.BLOCKED, now, remaining, "no way past")
         return self._command(0.0, 0.0, dt, status, limit)
 
-    def _turn_is_free(self, pose: PoseEstimate, aim_deg: float, now: float) -> bool:
+    def _turn_is_free(
+        self, pose: PoseEstimate, aim_deg: float, now: float, clearances: Clearances | None = None
+    ) -> bool:
         """Whether turning on the spot (about the axle) from the pose's heading to
-        ``aim_deg`` is an admissible path on the costmap. The body alone counts, without the
-        zone kept free ahead for driving: a turn on the spot does not drive into anything,
-        and the collision verdict still gates it."""
+        ``aim_deg`` is an admissible path on the costmap, keeping ``clearances`` (default:
+        the costmap's). The body alone counts, without the zone kept free ahead for
+        driving: a turn on the spot does not drive into anything, and the collision verdict
+        still gates it."""
         error = math.radians(wrap_deg(aim_deg - pose.heading_deg))
         start = (pose.x_mm, pose.y_mm, math.radians(pose.heading_deg))
         # At one radian per unit time, the turn is done at time ``error``.
-        times = np.linspace(0.0, abs(error), TURN_CHECK_STEPS)
+        steps = max(2, math.ceil(math.degrees(abs(error)) / TURN_CHECK_DEG) + 1)
+        times = np.linspace(0.0, abs(error), steps)
         xs, ys, headings = rollout(
             start,
             np.zeros(1),
@@ -450,7 +483,9 @@ class MotionController:
             times,
             self.footprint.axle_x_mm,
         )
-        admissible, _ = self.costmap.admissible(xs, ys, headings, start, now, self.costmap.body)
+        admissible, _ = self.costmap.admissible(
+            xs, ys, headings, start, now, self.costmap.body, clearances
+        )
         return bool(admissible[0])
 
 

@@ -1,0 +1,121 @@
+"""A turn on the spot is begun only with room for its sweep.
+
+The robot turns about its axle, 150 mm ahead of the body's centre, so its rear corners swing
+522 mm out, where no sensor looks. A quarter turn begun in a lane 300 mm from a wall, away
+from it, puts a rear corner 33 mm from the wall; begun beside another robot, it swings into
+it, the collision monitor stops it halfway, and the two stand askew in each other's way.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from helpers import CONFIG, PLAN, estimate_at
+
+from coffeebot.messages import (
+    MotionState,
+    MoveInstruction,
+    RangeReading,
+    RangeScan,
+    ReadingStatus,
+)
+from coffeebot.modules.motion import MotionModule
+from coffeebot.navigation.dwa import rollout
+
+FLOOR = PLAN.floor(2)
+HALF_WIDTH = FLOOR.hallway.width_mm / 2
+S_MM = 20000.0
+"""A stretch of plain wall on both sides."""
+KEEP_RIGHT_D = -HALF_WIDTH + CONFIG.motion.wall_distance_mm + CONFIG.geometry.width_mm / 2
+"""The keep-right lane travelling east: the body's right side 300 mm from the wall."""
+EAST = FLOOR.hallway.heading_deg
+
+
+def module_at(d_mm: float, readings: dict[int, float] | None = None) -> MotionModule:
+    """The motion module of a robot standing at ``S_MM``, ``d_mm`` facing east, whose
+    sensors have read ``readings`` (sensor id: mm; nothing in range on the others)."""
+    module = MotionModule(CONFIG, PLAN)
+    x, y = FLOOR.from_hallway(S_MM, d_mm)
+    module.costmap.reset(FLOOR, x, y)
+    seen = readings or {}
+    scan = RangeScan(
+        cycle_start_s=0.0,
+        cycle_time_s=0.05,
+        readings=[
+            RangeReading(sensor=s.id, status=ReadingStatus.VALID, distance_mm=seen[s.id])
+            if s.id in seen
+            else RangeReading(sensor=s.id, status=ReadingStatus.OUT_OF_BOUNDS)
+            for s in CONFIG.tof.sensors
+        ],
+    )
+    for t in np.arange(0.0, 1.0, 0.05):
+        module.costmap.update(scan, FLOOR, x, y, EAST, float(t))
+    return module
+
+
+def turn_to(module: MotionModule, d_mm: float, heading_deg: float, periods: int = 10):
+    """The commands of ``periods`` control periods turning towards ``heading_deg``."""
+    x, y = FLOOR.from_hallway(S_MM, d_mm)
+    pose = estimate_at(2, x, y, EAST)
+    instruction = MoveInstruction(id=1, action="turn", floor=2, heading_deg=heading_deg)
+    return [
+        module.controller.step(instruction, pose, 1.0 + 0.05 * k, 0.05, 500.0)
+        for k in range(periods)
+    ]
+
+
+def closest_wall_mm(module: MotionModule, d_mm: float, heading_deg: float) -> float:
+    """The least gap between the body and a plan wall along the turn."""
+    x, y = FLOOR.from_hallway(S_MM, d_mm)
+    turn = math.radians(heading_deg - EAST)
+    times = np.linspace(0.0, abs(turn), 37)
+    xs, ys, headings = rollout(
+        (x, y, math.radians(EAST)),
+        np.zeros(1),
+        np.array([math.copysign(1.0, turn)]),
+        times,
+        module.costmap.footprint.axle_x_mm,
+    )
+    return float(module.costmap.wall_gaps(xs, ys, headings).min())
+
+
+def test_a_turn_away_from_the_near_wall_is_not_begun_and_the_robot_says_so() -> None:
+    module = module_at(KEEP_RIGHT_D)
+    # Turning left, the rear swings right, into the wall the lane keeps 300 mm from.
+    assert closest_wall_mm(module, KEEP_RIGHT_D, EAST + 90.0) < CONFIG.motion.turn_clearance_mm
+    commands = turn_to(module, KEEP_RIGHT_D, EAST + 90.0)
+    assert all(c.yaw_rate_dps == 0.0 and c.speed_mm_s == 0.0 for c in commands)
+    assert commands[-1].status.state is MotionState.BLOCKED
+    assert commands[-1].status.detail.startswith("no room to turn")
+
+
+def test_the_same_turn_towards_the_near_wall_is_made() -> None:
+    module = module_at(KEEP_RIGHT_D)
+    assert closest_wall_mm(module, KEEP_RIGHT_D, EAST - 90.0) > CONFIG.motion.turn_clearance_mm
+    commands = turn_to(module, KEEP_RIGHT_D, EAST - 90.0)
+    assert commands[-1].status.state is MotionState.MOVING
+    assert commands[-1].yaw_rate_dps < 0.0
+
+
+def test_a_turn_whose_rear_swings_into_something_beside_the_robot_is_not_begun() -> None:
+    """Another robot 150 mm off the left side (both left sensors see it): turning right
+    swings the rear-left corner 267 mm out to the left, into it; in the middle of the hallway
+    the walls alone would allow it."""
+    module = module_at(0.0, readings={6: 150.0, 7: 150.0})
+    blocked = turn_to(module, 0.0, EAST - 90.0)
+    assert blocked[-1].status.state is MotionState.BLOCKED
+    assert all(c.yaw_rate_dps == 0.0 for c in blocked)
+    free = turn_to(module_at(0.0), 0.0, EAST - 90.0)
+    assert free[-1].status.state is MotionState.MOVING and free[-1].yaw_rate_dps < 0.0
+
+
+def test_a_turn_under_way_is_not_judged_again_each_period() -> None:
+    """Once begun, the collision monitor guards the turn: a costmap that fills in beside the
+    robot as it turns does not freeze it halfway, askew."""
+    module = module_at(0.0)
+    first = turn_to(module, 0.0, EAST - 90.0, periods=3)
+    assert first[-1].yaw_rate_dps < 0.0
+    module.controller.costmap = module_at(0.0, readings={6: 150.0, 7: 150.0}).costmap
+    again = turn_to(module, 0.0, EAST - 90.0, periods=3)
+    assert all(c.yaw_rate_dps < 0.0 for c in again)
