@@ -104,6 +104,45 @@ def test_a_robot_beyond_where_this_one_stops_is_neither_waited_for_nor_gone_roun
     assert near[-1].status.detail == "no way past the obstacle ahead, waiting"
 
 
+def test_a_box_just_before_a_stop_in_the_lane_is_waited_for_not_gone_round() -> None:
+    """A robot that went round another just before the elevator ended its move 334 mm off
+    the lane it had to turn from, and its turn into the car had no room (a fleet jam; before
+    turns were checked, a contact). A move that ends in its lane (no door's: a turn or a
+    wait follows) begins no go-round it would not be back from by its end; a move to an
+    office door, where the customer takes the cup wherever the robot stands, still does."""
+    module = module_with_box(seen_for_s=3.0)
+    sighting = module.controller.detour.obstacle_ahead(FLOOR, START_S, LANE, 1.0, 3.0)
+    assert sighting is not None and sighting.static
+    x, y = FLOOR.from_hallway(START_S, LANE)
+    pose = estimate_at(2, x, y, FLOOR.hallway.heading_deg)
+    stop_at = sighting.far_edge(1.0) + 1000.0  # past the box, not back in the lane by then
+
+    def go(room: str | None, target_s: float) -> tuple[Command, Phase | None]:
+        controller = module_with_box(seen_for_s=3.0).controller
+        instruction = MoveInstruction(
+            id=1,
+            action="follow_lane",
+            floor=2,
+            target_s_mm=target_s,
+            lane_mm=LANE,
+            stop=True,
+            avoid=True,
+            target_room=room,
+        )
+        commands = [
+            controller.step(instruction, pose, 3.0 + 0.05 * k, 0.05, 500.0) for k in range(5)
+        ]
+        return commands[-1], controller.detour.phase
+
+    waits, phase = go(None, stop_at)
+    assert phase is Phase.CONFIRMING and waits.speed_mm_s == 0.0
+    assert waits.status.detail == "obstacle ahead, too near the stop to go round, waiting"
+    _, phase = go("209", stop_at)
+    assert phase is Phase.GOING_ROUND
+    _, phase = go(None, stop_at + 3000.0)  # room to be back in the lane first
+    assert phase is Phase.GOING_ROUND
+
+
 def test_not_allowed_to_leave_the_lane_it_stays_confirming() -> None:
     planner = planner_with_box(seen_for_s=3.0)
     planner.update(FLOOR, START_S, LANE, LANE, 1.0, avoid=False, now=3.0)

@@ -78,6 +78,9 @@ class Detour:
     extent_s_mm: float | None = None
     """The furthest along-hallway position of the obstacle seen while going round, plus the
     static tolerance: the body's rear must be beyond it before the robot rejoins."""
+    too_near_stop: bool = False
+    """Confirming: a lane past it is free, but the robot would not be back in its own lane
+    by where it must stop in it."""
 
     def go_round(self, lane_mm: float) -> None:
         self.phase, self.lane_mm = Phase.GOING_ROUND, lane_mm
@@ -133,10 +136,13 @@ class DetourPlanner:
         avoid: bool,
         now: float,
         horizon_mm: float | None = None,
+        in_lane_by_s_mm: float | None = None,
     ) -> Sighting | None:
         """One control period at hallway position ``s``, ``d`` keeping ``lane``: move the
         detour through its phases; the nearest obstacle in the lane ahead, if any, nearer
-        than ``horizon_mm`` (default: the lookahead)."""
+        than ``horizon_mm`` (default: the lookahead). With ``in_lane_by_s_mm`` (the move
+        ends there, in its lane: a turn on the spot or a wait follows) a go-round that would
+        not be back in the lane by then is not begun: the robot waits in its lane."""
         sighting = self.obstacle_ahead(floor, s, lane, direction, now, horizon_mm)
         detour = self.detour
         if sighting is not None:
@@ -149,7 +155,15 @@ class DetourPlanner:
                 settled = detour.phase is Phase.GOING_ROUND
                 wanted = detour.lane_mm if settled and detour.lane_mm is not None else lane
                 free = self.free_lane(floor, sighting.s_mm, wanted, direction, now, settled)
-                if free is not None:
+                detour.too_near_stop = (
+                    free is not None
+                    and not settled
+                    and in_lane_by_s_mm is not None
+                    and (in_lane_by_s_mm - self._back_in_lane_s(sighting, free, lane, direction))
+                    * direction
+                    < 0
+                )
+                if free is not None and not detour.too_near_stop:
                     detour.go_round(free)
             if detour.phase is Phase.GOING_ROUND:
                 far = sighting.far_edge(direction) + direction * self.cfg.static_tolerance_mm
@@ -164,6 +178,15 @@ class DetourPlanner:
                 else:
                     self.detour = None
         return sighting
+
+    def _back_in_lane_s(
+        self, sighting: Sighting, detour_lane: float, lane: float, direction: float
+    ) -> float:
+        """Where a robot going round ``sighting`` in ``detour_lane`` is back in ``lane``, at
+        the soonest: its rear past the obstacle, then across at ``max_lane_angle_deg``."""
+        rear_past = self.footprint.length_mm / 2 + self.cfg.obstacle_clearance_mm
+        across = abs(detour_lane - lane) / math.tan(math.radians(self.cfg.max_lane_angle_deg))
+        return sighting.far_edge(direction) + direction * (rear_past + across)
 
     def _passed(self, detour: Detour, s: float, direction: float) -> bool:
         """The body's rear is beyond the obstacle's extent (rejoining: nothing to pass)."""

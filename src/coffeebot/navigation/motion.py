@@ -321,17 +321,21 @@ class MotionController:
         # Something beyond where the robot stops anyway is neither waited for nor gone
         # round: a robot waiting for the tea room swerved round one coming out of its door.
         horizon = remaining + self.detour.wait_distance_mm() if ins.stop else None
-        sighting = self.detour.update(floor, s, d, lane, direction, ins.avoid, now, horizon)
+        # A stop that is not a door's (where the robot turns, or waits its turn) is made in
+        # the lane: one that ended going round stood off it, its turn refused for the wall.
+        in_lane_by = ins.target_s_mm if ins.stop and ins.target_room is None else None
+        sighting = self.detour.update(
+            floor, s, d, lane, direction, ins.avoid, now, horizon, in_lane_by
+        )
         detour_lane = self.detour.lane_mm
         if self.detour.phase is Phase.CONFIRMING and sighting is not None:
             gap = (sighting.near_edge(direction) - s) * direction - self.detour.wait_distance_mm()
             target = min(target, self.profile.target(gap, cruise))
+            why = _waiting_why(sighting, ins.avoid)
+            if self.detour.detour is not None and self.detour.detour.too_near_stop:
+                why = "obstacle ahead, too near the stop to go round, waiting"
             status = self._status(
-                ins.id,
-                _waiting_state(sighting, ins.avoid, target),
-                now,
-                remaining,
-                _waiting_why(sighting, ins.avoid),
+                ins.id, _waiting_state(sighting, ins.avoid, target), now, remaining, why
             )
         elif detour_lane is not None:
             # Going round (or back to the lane): hold the detour lane until the body is past
