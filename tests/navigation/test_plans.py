@@ -94,6 +94,34 @@ def test_turning_to_a_door_leaves_the_centre_on_its_axis() -> None:
     assert abs(s - PLANNER.base.door.at_mm) < 1.0
 
 
+def test_out_of_a_door_and_turned_along_the_hallway_the_centre_is_in_the_lane() -> None:
+    """Out of the tea room (right side) for a room either way, and out of the car on floor 3
+    (left side): the drive out stops short of the lane (or past it) by the axle's offset, so
+    the quarter turn about the axle along the hallway leaves the centre in the lane, not
+    150 mm beyond it (in front of the car's door) or short of it (towards the robot waiting
+    beside the lane)."""
+    floor2, floor3 = PLAN.floor(2), PLAN.floor(3)
+    base = PLANNER.base
+    cases = [
+        (floor2, PLANNER.route(2, base.door.at_mm, PLANNER.door_place(room), base.door))
+        for room in ("205", "212")  # west and east of the tea room
+    ]
+    cases.append((floor3, PLANNER.route(2, base.door.at_mm, PLANNER.door_place("305"), base.door)))
+    for floor, route in cases:
+        steps = [m.instruction for m in moves(route)]
+        rides = [s for s in route.steps if isinstance(s, ElevatorRide)]
+        if floor is floor3:
+            steps = [m.instruction for m in rides[0].exit] + steps[-1:]
+        out = next(ins for ins in steps if ins.action == "drive_to" and ins.floor == floor.level)
+        along = next(ins for ins in steps[steps.index(out) + 1 :] if ins.action == "follow_lane")
+        s, d = floor.to_hallway(out.x_mm, out.y_mm)
+        # Heading out of the door, hallway frame: the car is on the left, the tea room right.
+        facing_out = -90.0 if floor is floor3 else 90.0
+        travel = 0.0 if along.target_s_mm > s else 180.0
+        _, centre_d = pivot(s, d, facing_out, travel)
+        assert abs(centre_d - along.lane_mm) < 1.0, (floor.level, along.detail)
+
+
 def test_route_back_to_base_parks_inside() -> None:
     door = PLAN.find_room("308").door
     route = PLANNER.route(3, door.at_mm, PLANNER.base)

@@ -151,6 +151,16 @@ class RoutePlanner:
         ``door`` leaves the body's centre on the door's axis."""
         return door.at_mm - direction * self.pivot_mm
 
+    def out_to_mm(self, door: Door, lane: float) -> float:
+        """Where (``d``) to stop driving out of ``door`` so that the quarter turn along the
+        hallway that follows leaves the body's centre in ``lane``. The turn is about the
+        axle, ``pivot_mm`` ahead of the centre, which ends where the axle stood: stopped in
+        the lane, a robot out of the tea room for the far lane ended 150 mm beyond it, in
+        front of the car's door, and one out of the car 150 mm short of it, in the way of
+        the robot waiting beside its lane."""
+        out_of_door = -1.0 if door.side == "left" else 1.0
+        return lane - out_of_door * self.pivot_mm
+
     # --- moves -----------------------------------------------------------------------------
 
     def _lane(
@@ -231,7 +241,15 @@ class RoutePlanner:
         if leave is not None:
             s = leave.at_mm
             lane = self.lane_mm(floor, self._direction(floor, s, goal))
-            steps.append(self._drive_to(floor, floor.from_hallway(s, lane), f"out of {leave.room}"))
+            # Out and turned along the hallway, unless the car it rides in is straight across.
+            car = floor.elevator
+            across = (
+                rides and car is not None and abs(car.at_mm - s) <= self.motion.stop_tolerance_mm
+            )
+            out_to = lane if across else self.out_to_mm(leave, lane)
+            steps.append(
+                self._drive_to(floor, floor.from_hallway(s, out_to), f"out of {leave.room}")
+            )
             if from_base and not to_car_near:
                 steps.append(spot_given_back)
         if rides:
@@ -415,14 +433,16 @@ class RoutePlanner:
         target_s = goal.door.at_mm
         direction = 1.0 if target_s >= door_there.at_mm else -1.0
         out_lane = self.lane_mm(there, direction)
+        straight_across = goal.inside and self._across_from(goal.door, door_there.at_mm)
+        out_to = out_lane if straight_across else self.out_to_mm(door_there, out_lane)
         out = [
             self._drive_to(
                 there,
-                there.from_hallway(door_there.at_mm, out_lane),
+                there.from_hallway(door_there.at_mm, out_to),
                 f"out of the elevator on floor {to_level}",
             )
         ]
-        if not (goal.inside and self._across_from(goal.door, door_there.at_mm)):
+        if not straight_across:
             out.append(self._turn(there, self.travel_deg(there, direction), "into the lane"))
         return ElevatorRide(
             from_floor=from_level,
