@@ -70,14 +70,17 @@ def test_a_static_obstacle_is_gone_round_in_a_free_lane_past_its_extent() -> Non
 
 def test_a_robot_beyond_where_this_one_stops_is_neither_waited_for_nor_gone_round() -> None:
     """A robot waiting for the tea room short of its door swerved round the robot coming out
-    of the door beyond its stop, and stood off its lane when its turn came. Something further
-    than the robot would wait from it after the stop does not change where it stops: it
-    drives on in its lane. Stopping nearer than that, it waits to go round, as before."""
+    of the door beyond its stop, and stood off its lane when its turn came. Something the
+    body and the zone kept free ahead of it would not reach at the stop does not change where
+    it stops: it drives on in its lane, also when that is nearer than the robot would wait
+    from it to go round (a robot 113 mm short of its turn into the tea room waited for good
+    there for one standing 1.3 m ahead, which waited for it). Stopping nearer, it waits to
+    go round, as before."""
     ahead_mm, wide = 1400.0, frozenset({2, 3, 4, 5})  # across the lane: all four see it
     module = module_with_box(seen_for_s=3.0, box_mm=ahead_mm, seeing=wide)
     sighting = module.controller.detour.obstacle_ahead(FLOOR, START_S, LANE, 1.0, 3.0)
     assert sighting is not None and sighting.static
-    waits_at = sighting.near_edge(1.0) - module.controller.detour.wait_distance_mm()
+    reaches_at = sighting.near_edge(1.0) - module.controller.detour.keep_distance_mm()
     x, y = FLOOR.from_hallway(START_S, LANE)
     pose = estimate_at(2, x, y, FLOOR.hallway.heading_deg)
 
@@ -94,12 +97,17 @@ def test_a_robot_beyond_where_this_one_stops_is_neither_waited_for_nor_gone_roun
         )
         return [controller.step(instruction, pose, 3.0 + 0.05 * k, 0.05, 500.0) for k in range(5)]
 
-    assert waits_at - 200.0 > START_S + 200.0
-    short = step_to(waits_at - 200.0)
+    assert reaches_at - 200.0 > START_S + 200.0
+    short = step_to(reaches_at - 200.0)
     assert all(c.status.state is MotionState.MOVING for c in short)
     assert all("obstacle" not in c.status.detail for c in short)
     assert short[-1].speed_mm_s > 0.0 and abs(short[-1].yaw_rate_dps) < 1.0
-    near = step_to(waits_at + 200.0)
+    waits_at = sighting.near_edge(1.0) - module.controller.detour.wait_distance_mm()
+    beyond_waiting = step_to(waits_at + 200.0)
+    assert reaches_at > waits_at + 200.0
+    assert all("obstacle" not in c.status.detail for c in beyond_waiting)
+    assert beyond_waiting[-1].speed_mm_s > 0.0
+    near = step_to(reaches_at + 200.0)
     # Closing in to wait in front of it: no lane past a robot across the hallway.
     assert near[-1].status.detail == "no way past the obstacle ahead, waiting"
 

@@ -115,16 +115,15 @@ class DetourPlanner:
         """A new instruction: whatever was being gone round is judged afresh."""
         self.detour = None
 
+    def keep_distance_mm(self) -> float:
+        """Centre-to-obstacle distance ahead at the edge of the lethal zone: the body, the
+        zone kept free ahead of it and the clearance."""
+        fp = self.footprint
+        return fp.length_mm / 2 + fp.front_extra_mm + self.cfg.obstacle_clearance_mm
+
     def wait_distance_mm(self) -> float:
         """Centre-to-obstacle distance at which the robot waits: outside the lethal zone."""
-        fp = self.footprint
-        return (
-            fp.length_mm / 2
-            + fp.front_extra_mm
-            + self.cfg.obstacle_clearance_mm
-            + self.cfg.costmap_resolution_mm
-            + WAIT_ROOM_MM
-        )
+        return self.keep_distance_mm() + self.cfg.costmap_resolution_mm + WAIT_ROOM_MM
 
     def update(
         self,

@@ -318,9 +318,10 @@ class MotionController:
             if target <= 0:
                 why = f"letting {self.passing} pass before crossing the hallway"
                 status = self._status(ins.id, MotionState.WAITING, now, remaining, why)
-        # Something beyond where the robot stops anyway is neither waited for nor gone
-        # round: a robot waiting for the tea room swerved round one coming out of its door.
-        horizon = remaining + self.detour.wait_distance_mm() if ins.stop else None
+        # Something the body and the zone kept free ahead of it do not reach at the stop is
+        # neither waited for nor gone round: a robot waiting for the tea room swerved round
+        # one coming out of its door beyond.
+        horizon = remaining + self.detour.keep_distance_mm() if ins.stop else None
         # A stop that is not a door's (where the robot turns, or waits its turn) is made in
         # the lane: one that ended going round stood off it, its turn refused for the wall.
         in_lane_by = ins.target_s_mm if ins.stop and ins.target_room is None else None
