@@ -495,6 +495,8 @@ def print_table(result: dict[str, Any], runs: list[dict[str, Any]], elapsed: flo
                 f"{r['camera_fix_error_mm_p95']} mm, max {r['camera_fix_error_mm_max']} mm; "
                 f"over 300 mm: {', '.join(r['camera_fixes_over_300mm']) or 'none'}"
             )
+        for contact in r["contacts"]:
+            print(f"{_label(r)}: contact: {contact}")
     print(f"\n{elapsed / 60:.1f} min")
 
 
