@@ -11,7 +11,7 @@ from coffeebot.modules.motion import MotionModule
 from coffeebot.navigation.costmap import LocalCostmap
 from coffeebot.navigation.detour import REJOIN_MM, Detour, DetourPlanner, Phase
 from coffeebot.navigation.dwa import rollout
-from coffeebot.navigation.motion import Command
+from coffeebot.navigation.motion import Command, MotionController
 
 FLOOR = PLAN.floor(2)
 HALF_WIDTH = FLOOR.hallway.width_mm / 2
@@ -48,6 +48,27 @@ def module_with_box(
     return module
 
 
+def stop_in_lane(
+    controller: MotionController, target_s: float, room: str | None = None
+) -> list[Command]:
+    """Five control periods of a robot at ``START_S`` in ``LANE``, at rest, told to drive
+    in the lane to a stop at ``target_s`` (at ``room``'s door, if given), going round what
+    it must."""
+    x, y = FLOOR.from_hallway(START_S, LANE)
+    pose = estimate_at(2, x, y, FLOOR.hallway.heading_deg)
+    instruction = MoveInstruction(
+        id=1,
+        action="follow_lane",
+        floor=2,
+        target_s_mm=target_s,
+        lane_mm=LANE,
+        stop=True,
+        avoid=True,
+        target_room=room,
+    )
+    return [controller.step(instruction, pose, 3.0 + 0.05 * k, 0.05, 500.0) for k in range(5)]
+
+
 def test_an_obstacle_just_seen_is_confirmed_before_it_is_gone_round() -> None:
     planner = planner_with_box(seen_for_s=0.5)
     sighting = planner.update(FLOOR, START_S, LANE, LANE, 1.0, avoid=True, now=0.5)
@@ -81,21 +102,10 @@ def test_a_robot_beyond_where_this_one_stops_is_neither_waited_for_nor_gone_roun
     sighting = module.controller.detour.obstacle_ahead(FLOOR, START_S, LANE, 1.0, 3.0)
     assert sighting is not None and sighting.static
     reaches_at = sighting.near_edge(1.0) - module.controller.detour.keep_distance_mm()
-    x, y = FLOOR.from_hallway(START_S, LANE)
-    pose = estimate_at(2, x, y, FLOOR.hallway.heading_deg)
 
     def step_to(target_s: float) -> list[Command]:
         controller = module_with_box(seen_for_s=3.0, box_mm=ahead_mm, seeing=wide).controller
-        instruction = MoveInstruction(
-            id=1,
-            action="follow_lane",
-            floor=2,
-            target_s_mm=target_s,
-            lane_mm=LANE,
-            stop=True,
-            avoid=True,
-        )
-        return [controller.step(instruction, pose, 3.0 + 0.05 * k, 0.05, 500.0) for k in range(5)]
+        return stop_in_lane(controller, target_s)
 
     assert reaches_at - 200.0 > START_S + 200.0
     short = step_to(reaches_at - 200.0)
@@ -121,26 +131,11 @@ def test_a_box_just_before_a_stop_in_the_lane_is_waited_for_not_gone_round() -> 
     module = module_with_box(seen_for_s=3.0)
     sighting = module.controller.detour.obstacle_ahead(FLOOR, START_S, LANE, 1.0, 3.0)
     assert sighting is not None and sighting.static
-    x, y = FLOOR.from_hallway(START_S, LANE)
-    pose = estimate_at(2, x, y, FLOOR.hallway.heading_deg)
     stop_at = sighting.far_edge(1.0) + 1000.0  # past the box, not back in the lane by then
 
     def go(room: str | None, target_s: float) -> tuple[Command, Phase | None]:
         controller = module_with_box(seen_for_s=3.0).controller
-        instruction = MoveInstruction(
-            id=1,
-            action="follow_lane",
-            floor=2,
-            target_s_mm=target_s,
-            lane_mm=LANE,
-            stop=True,
-            avoid=True,
-            target_room=room,
-        )
-        commands = [
-            controller.step(instruction, pose, 3.0 + 0.05 * k, 0.05, 500.0) for k in range(5)
-        ]
-        return commands[-1], controller.detour.phase
+        return stop_in_lane(controller, target_s, room)[-1], controller.detour.phase
 
     waits, phase = go(None, stop_at)
     assert phase is Phase.CONFIRMING and waits.speed_mm_s == 0.0
