@@ -97,6 +97,8 @@ async def test_the_customer_and_the_inspector_see_the_robot_wait_for_a_cart_a_ca
     await expect(inspector.locator("#camera-legend")).to_be_visible()
     # Following the robot, which faces -x: the cart lies ahead, to its left on screen.
     robot = inspector.locator("#map g.robot[data-label=estimated] rect")
+    # The map is drawn anew with each pose: wait for the robot drawn, as for the cart.
+    await expect(robot).to_be_visible()
     cart_box, robot_box = await cart.bounding_box(), await robot.bounding_box()
     assert cart_box is not None and robot_box is not None
     assert cart_box["x"] + cart_box["width"] < robot_box["x"], (cart_box, robot_box)
