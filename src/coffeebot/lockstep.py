@@ -23,7 +23,7 @@ import itertools
 import logging
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 
 log = logging.getLogger(__name__)
@@ -85,6 +85,10 @@ class Lockstep:
         self._finished: list[tuple[int, Callable[[], None]]] = []
         self._jobs = itertools.count()
         self.engaged = False
+        self.outside: list[Callable[[], Awaitable[bool]]] = []
+        """Drains of what the daemons sent outside the process (a broker's messages,
+        :mod:`coffeebot.fleet.in_step`): each waits until its traffic has arrived and says
+        whether there was any; the world steps once none has."""
 
     def now(self) -> float:
         """The simulated clock's time."""

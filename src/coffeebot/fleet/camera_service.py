@@ -33,7 +33,8 @@ from coffeebot.cameras.own_estimate import OwnEstimate
 from coffeebot.cameras.service import CameraService, Robot
 from coffeebot.cameras.sources import FrameSource
 from coffeebot.config import RobotConfig
-from coffeebot.fleet.client import KEEPALIVE_S, broker_address
+from coffeebot.fleet.client import mqtt_client
+from coffeebot.fleet.in_step import messages_in_step
 from coffeebot.fleet.mosquitto import Credentials
 from coffeebot.fleet.protocol import (
     CAMERA_LAYER_TOPIC,
@@ -166,18 +167,15 @@ class CameraServiceModule(Module):
     # --- the broker -------------------------------------------------------------------------
 
     async def _connect_forever(self, ctx: ModuleContext) -> None:
-        host, port = broker_address(self.broker)
         link = Transitions(ctx.log, initial={"broker": CONNECTED})
         backoff = Backoff(0.5, 10.0)
         while True:
             try:
-                async with aiomqtt.Client(
-                    host,
-                    port,
-                    username=self.credentials.username,
-                    password=self.credentials.password,
-                    identifier="coffeebot-cameras",
-                    keepalive=KEEPALIVE_S,
+                async with mqtt_client(
+                    self.broker,
+                    self.credentials,
+                    "coffeebot-cameras",
+                    in_step=messages_in_step(ctx.clock),
                 ) as client:
                     await client.subscribe(
                         [(f"{ROOT}/robots/+/{kind}", QOS[kind]) for kind in ROBOT_TO_CAMERAS]

@@ -10,10 +10,12 @@ import asyncio
 import contextlib
 import time
 from collections.abc import AsyncIterator
+from typing import Any
 from urllib.parse import urlparse
 
 import aiomqtt
 
+from coffeebot.fleet.in_step import MessagesInStep, SteppedClient
 from coffeebot.fleet.mosquitto import Credentials
 from coffeebot.fleet.protocol import Connection, ConnectionState, encode
 
@@ -34,11 +36,17 @@ GOODBYE_S = 1.0
 
 @contextlib.asynccontextmanager
 async def fleet_session(
-    url: str, credentials: Credentials, identifier: str, connection_topic: str
+    url: str,
+    credentials: Credentials,
+    identifier: str,
+    connection_topic: str,
+    in_step: MessagesInStep | None = None,
 ) -> AsyncIterator[aiomqtt.Client]:
     """Connected and announced online; a shutdown (the task cancelled) announces offline
     before it disconnects, so peers do not take a robot that left for one still there."""
-    async with fleet_client(url, credentials, identifier, connection_topic) as client:
+    broken = encode(Connection(state=ConnectionState.CONNECTION_BROKEN, at_s=time.time()))
+    will = aiomqtt.Will(connection_topic, broken, qos=1, retain=True)
+    async with mqtt_client(url, credentials, identifier, will, in_step) as client:
         await _announce(client, connection_topic, ConnectionState.ONLINE)
         try:
             yield client
@@ -55,18 +63,23 @@ async def _announce(client: aiomqtt.Client, topic: str, state: ConnectionState) 
     )
 
 
-def fleet_client(
-    url: str, credentials: Credentials, identifier: str, connection_topic: str
+def mqtt_client(
+    url: str,
+    credentials: Credentials,
+    identifier: str,
+    will: aiomqtt.Will | None = None,
+    in_step: MessagesInStep | None = None,
 ) -> aiomqtt.Client:
-    """A client for ``url`` whose last will marks ``connection_topic`` broken."""
+    """A client for ``url``; in a simulated fleet (``in_step``) one whose traffic the
+    simulated clock waits for."""
     host, port = broker_address(url)
-    broken = encode(Connection(state=ConnectionState.CONNECTION_BROKEN, at_s=time.time()))
-    return aiomqtt.Client(
-        host,
-        port,
-        username=credentials.username,
-        password=credentials.password,
-        identifier=identifier,
-        keepalive=KEEPALIVE_S,
-        will=aiomqtt.Will(connection_topic, broken, qos=1, retain=True),
-    )
+    options: dict[str, Any] = {
+        "username": credentials.username,
+        "password": credentials.password,
+        "identifier": identifier,
+        "keepalive": KEEPALIVE_S,
+        "will": will,
+    }
+    if in_step is not None:
+        return SteppedClient(in_step, host, port, **options)
+    return aiomqtt.Client(host, port, **options)

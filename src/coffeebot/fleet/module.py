@@ -18,6 +18,7 @@ import aiomqtt
 from coffeebot.board import Subscription
 from coffeebot.fleet.client import fleet_session
 from coffeebot.fleet.dispatcher import Announce, Dispatcher
+from coffeebot.fleet.in_step import messages_in_step
 from coffeebot.fleet.mosquitto import Credentials
 from coffeebot.fleet.protocol import (
     DISPATCHER_CONNECTION,
@@ -198,7 +199,11 @@ class DispatcherModule(Module):
         while True:
             try:
                 async with fleet_session(
-                    self.broker, self.credentials, "coffeebot-dispatcher", DISPATCHER_CONNECTION
+                    self.broker,
+                    self.credentials,
+                    "coffeebot-dispatcher",
+                    DISPATCHER_CONNECTION,
+                    messages_in_step(ctx.clock),
                 ) as client:
                     await client.subscribe(
                         [(f"{ROOT}/robots/+/{kind}", 1) for kind in ROBOT_TO_DISPATCHER]

@@ -5,7 +5,8 @@ A building's real broker is configured by whoever runs it (docs/fleet.md shows t
 rules); this is the same configuration made on the spot. Every robot logs in as its robot id
 and may write only its own reports and odometry and read only its own orders and camera
 fixes, and the cameras' layer (``pattern`` rules with ``%u``); the dispatcher, camera
-service included, may read and write everything under ``coffeebot/v1``.
+service included, may read and write everything under ``coffeebot/v1``. Everyone may read
+the simulated clock's step markers and write its own (:mod:`coffeebot.fleet.in_step`).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from coffeebot.errors import CoffeebotError
+from coffeebot.fleet.in_step import STEP_TOPIC
 from coffeebot.fleet.protocol import (
     CAMERA_LAYER_TOPIC,
     CAMERAS_TO_ROBOT,
@@ -65,6 +67,8 @@ def acl_rules() -> str:
     for kind in (*DISPATCHER_TO_ROBOT, *CAMERAS_TO_ROBOT):
         lines.append(f"pattern read {ROOT}/robots/%u/{kind}")
     lines.append(f"pattern read {DISPATCHER_CONNECTION}")
+    lines.append(f"pattern write {STEP_TOPIC}/%u")
+    lines.append(f"pattern read {STEP_TOPIC}/#")
     lines.append(f"pattern read {CAMERA_LAYER_TOPIC}")
     return "\n".join(lines) + "\n"
 

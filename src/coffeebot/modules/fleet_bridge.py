@@ -41,6 +41,7 @@ from coffeebot.cameras.own_estimate import OwnEstimate
 from coffeebot.config import RobotConfig
 from coffeebot.fleet.camera_link import BATCH_S, CameraLink
 from coffeebot.fleet.client import fleet_session
+from coffeebot.fleet.in_step import messages_in_step
 from coffeebot.fleet.mosquitto import Credentials
 from coffeebot.fleet.protocol import (
     CAMERA_LAYER_TOPIC,
@@ -230,6 +231,7 @@ class FleetBridge(Module):
                     self.credentials,
                     f"coffeebot-{self.robot}",
                     self.topic("connection"),
+                    messages_in_step(ctx.clock),
                 ) as client:
                     await self._online(ctx, client)
                     backoff.reset()

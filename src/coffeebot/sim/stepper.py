@@ -145,11 +145,20 @@ class SimWorld:
 async def settle(loop: asyncio.AbstractEventLoop, lockstep: Lockstep) -> None:
     """Return once nothing in the daemons can happen before simulated time moves on: no task
     or callback is ready to run (``loop._ready``, CPython's run queue, is the only place
-    that says so) and no worker thread is busy; finished calls' results are handed over
+    that says so), no worker thread is busy and nothing they sent outside the process is
+    still on its way (:attr:`Lockstep.outside`); finished calls' results are handed over
     meanwhile, in the order the calls were made."""
     ready: Sized | None = getattr(loop, "_ready", None)
     if ready is None:
         raise RuntimeError("the simulator steps time on asyncio's own event loop only")
+    while True:
+        await _settle_inside(ready, lockstep)
+        arrived = [await drain() for drain in lockstep.outside]
+        if not any(arrived):
+            return
+
+
+async def _settle_inside(ready: Sized, lockstep: Lockstep) -> None:
     while True:
         await asyncio.sleep(0)
         if ready:
