@@ -490,7 +490,7 @@ class OrderUpdate(Message):
 
 # --- fleet ------------------------------------------------------------------------------
 
-SharedPlace = Literal["elevator", "loading_spot", "holding_point"]
+SharedPlace = Literal["elevator", "loading_spot", "holding_point", "crossing"]
 
 
 class LeaseNeed(Message):
@@ -508,6 +508,7 @@ class LeaseState(Message):
     elevator: bool = False
     loading_spot: bool = False
     holding_point: bool = False
+    crossing: bool = False
     detail: str = ""
 
     def holds(self, place: SharedPlace) -> bool:

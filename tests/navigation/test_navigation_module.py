@@ -286,10 +286,7 @@ async def grant_every_lease(board: Board) -> None:
     with board.subscribe(LEASE_NEED) as needs:
         async for envelope in needs:
             (held.add if envelope.msg.want else held.discard)(envelope.msg.place)
-            board.publish(
-                LEASE_STATE,
-                LeaseState(elevator="elevator" in held, loading_spot="loading_spot" in held),
-            )
+            board.publish(LEASE_STATE, LeaseState.model_validate(dict.fromkeys(held, True)))
 
 
 async def deliver_in_a_fleet(next_order: bool) -> list[str]:

@@ -1,5 +1,6 @@
-"""Shared places a robot must hold alone: the elevator car, the tea room's loading spot, and
-the holding point where a robot out of the car waits for that spot.
+"""Shared places a robot must hold alone: the elevator car, the tea room's loading spot, the
+holding point where a robot out of the car waits for that spot, and the crossing in front of
+the car's and the tea room's doors where they face each other.
 
 The dispatcher keeps one :class:`LeaseBook`. A robot asks for a place before it goes in and
 gives it back when it is out; while inside it asks again now and then, which renews the
@@ -16,7 +17,7 @@ from dataclasses import dataclass, field
 
 from coffeebot.fleet.protocol import Place
 
-PLACES: tuple[Place, ...] = ("elevator", "loading_spot", "holding_point")
+PLACES: tuple[Place, ...] = ("elevator", "loading_spot", "holding_point", "crossing")
 
 
 @dataclass

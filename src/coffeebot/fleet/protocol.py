@@ -149,7 +149,7 @@ class Ack(FleetMessage):
     reason: str = Field("", max_length=500)
 
 
-Place = Literal["elevator", "loading_spot", "holding_point"]
+Place = Literal["elevator", "loading_spot", "holding_point", "crossing"]
 
 
 class LeaseRequest(FleetMessage):

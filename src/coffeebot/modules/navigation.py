@@ -411,8 +411,7 @@ class NavigationModule(Module):
             cfg.call_timeout_s,
             f"car to floor {here}",
         )
-        for move in ride.enter:
-            await self._move(ctx, move)
+        await self._drive(ctx, ride.enter)
         await self._elevator_step(
             ctx,
             ElevatorRequest(action="send", floor=there),
@@ -433,8 +432,7 @@ class NavigationModule(Module):
                 DeliveryProblem.ELEVATOR,
             )
         self._progress(ctx, f"on floor {there}")
-        for move in ride.exit:
-            await self._move(ctx, move)
+        await self._drive(ctx, ride.exit)
         ctx.board.publish(ELEVATOR_REQUEST, ElevatorRequest(action="release", floor=there))
         # A fleet's route gives the elevator back once the robot is clear of its door.
 

@@ -8,9 +8,11 @@ new leg on the floor it arrives at.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 from coffeebot.floorplan import FloorPlan
 from coffeebot.messages import MoveInstruction, RouteLeg
-from coffeebot.navigation.route import ElevatorRide, Move, Route
+from coffeebot.navigation.route import ElevatorRide, Lease, Move, Route
 
 
 def _point(plan: FloorPlan, ins: MoveInstruction) -> tuple[float, float] | None:
@@ -29,8 +31,10 @@ def route_legs(
     """The route's points from ``start`` on ``floor``, one leg per floor in order."""
     legs: list[tuple[int, list[tuple[float, float]]]] = [(floor, [start])]
 
-    def add(moves: list[Move]) -> None:
-        for move in moves:
+    def add(steps: Sequence[Move | Lease]) -> None:
+        for move in steps:
+            if isinstance(move, Lease):
+                continue
             point = _point(plan, move.instruction)
             if point is not None:
                 legs[-1][1].append(point)

@@ -56,22 +56,24 @@ class Move:
 
 
 @dataclass(frozen=True)
-class ElevatorRide:
-    """Ride from ``from_floor`` to ``to_floor``: moves for before the call, in, and out."""
-
-    from_floor: int
-    to_floor: int
-    face_doors: Move
-    enter: list[Move]
-    exit: list[Move]
-
-
-@dataclass(frozen=True)
 class Lease:
     """Hold ``place`` alone from here (``want``), or give it back: only in a fleet."""
 
     place: SharedPlace
     want: bool
+
+
+@dataclass(frozen=True)
+class ElevatorRide:
+    """Ride from ``from_floor`` to ``to_floor``: moves for before the call, in, and out (a
+    fleet's robot gives the crossing back once in the car and takes it before it comes out,
+    where the car faces the base room)."""
+
+    from_floor: int
+    to_floor: int
+    face_doors: Move
+    enter: list[Move | Lease]
+    exit: list[Move | Lease]
 
 
 Step = Move | ElevatorRide | Lease
@@ -238,23 +240,33 @@ class RoutePlanner:
             and leave.room == self.plan.tea_room.door.room
         )
         to_car_near = asked and from_base
+        # Out of the base room across from the car, it holds the crossing until it is clear
+        # of both doorways (a robot leaving for that car holds the car, which is enough).
+        crossing_out = from_base and not to_car_near and self._crossing(floor)
+        clear: list[Step] = []
         if leave is not None:
             s = leave.at_mm
-            lane = self.lane_mm(floor, self._direction(floor, s, goal))
+            direction = self._direction(floor, s, goal)
+            lane = self.lane_mm(floor, direction)
             # Out and turned along the hallway, unless the car it rides in is straight across.
             car = floor.elevator
             across = (
                 rides and car is not None and abs(car.at_mm - s) <= self.motion.stop_tolerance_mm
             )
             out_to = lane if across else self.out_to_mm(leave, lane)
+            if crossing_out:
+                steps.append(Lease("crossing", True))
             steps.append(
                 self._drive_to(floor, floor.from_hallway(s, out_to), f"out of {leave.room}")
             )
             if from_base and not to_car_near:
                 steps.append(spot_given_back)
+            if crossing_out:
+                clear, s = self._out_of_crossing(floor, s, goal, lane, direction)
+                steps += clear
         if rides:
             steps.extend(self._to_elevator(floor, s, goal, asked))
-            steps.append(self._ride(floor_level, goal.floor, goal))
+            steps.append(self._ride(floor_level, goal.floor, goal, _holds(steps, "crossing")))
             if to_car_near:
                 steps.append(spot_given_back)
             floor = self.plan.floor(goal.floor)
@@ -267,6 +279,8 @@ class RoutePlanner:
         # turns in: the next may ride down to it once it is in the room.
         held = Lease("holding_point", True) in steps
         steps.extend(self._along(floor, s, goal, park, held=held))
+        if _holds(steps, "crossing"):  # its goal lies within the crossing
+            steps.append(Lease("crossing", False))
         return Route(steps)
 
     def where(self, floor_level: int, x_mm: float, y_mm: float) -> tuple[float, Door | None]:
@@ -297,6 +311,30 @@ class RoutePlanner:
             and floor.elevator is not None
             and abs(floor.elevator.at_mm - s) <= self._elevator_hold_mm
         )
+
+    def _crossing(self, floor: Floor) -> bool:
+        """Whether a fleet's robot holds the crossing on ``floor``: the base room's door is
+        as near the car's as a robot waits for the car (across from it in the CS building).
+        There the ways into and out of both doors cross, and two robots turning or driving
+        out in them at once stood in each other's sweep for good; each such move holds the
+        crossing, taken after every other lease and given back before any other is asked
+        for, so it cannot close a circle of robots waiting for each other."""
+        base = self.plan.tea_room
+        return (
+            self.parking is not None
+            and base.floor.level == floor.level
+            and floor.elevator is not None
+            and abs(base.door.at_mm - floor.elevator.at_mm) <= self._elevator_hold_mm
+        )
+
+    def _crossing_clear_mm(self, floor: Floor) -> float:
+        """How far along the hallway from the car's door a robot's body is clear of the
+        crossing: past both doorways by ``DOORWAY_CLEARANCE_MM``."""
+        elevator = floor.elevator
+        assert elevator is not None
+        base = self.plan.tea_room.door
+        reach = abs(base.at_mm - elevator.at_mm) + max(elevator.width_mm, base.width_mm) / 2
+        return reach + DOORWAY_CLEARANCE_MM + self.body_length_mm / 2
 
     def _elevator_leases(self, goal: Place) -> list[Step]:
         """What a fleet's robot holds before it rides: the elevator, and first the loading
@@ -339,11 +377,26 @@ class RoutePlanner:
             return None
         return point
 
+    def _out_of_crossing(
+        self, floor: Floor, s: float, goal: Place, lane: float, direction: float
+    ) -> tuple[list[Step], float]:
+        """On along the lane until clear of the crossing, giving it back there (or at the
+        goal, if that is nearer); and where it is then."""
+        assert floor.elevator is not None
+        clear_at = floor.elevator.at_mm + direction * self._crossing_clear_mm(floor)
+        if goal.floor == floor.level and (goal.door.at_mm - clear_at) * direction <= 0:
+            return [], s
+        away = self._lane(floor, clear_at, lane, stop=False, detail="clear of the crossing")
+        return [away, Lease("crossing", False)], clear_at
+
     def _clear_of_elevator(self, floor: Floor, s: float, goal: Place) -> tuple[list[Step], float]:
         """Out of the car, a fleet's robot gives the elevator back once it is as far from
         it as the next robot waits (at once if its goal is nearer; at the holding point if
         it goes on to the loading spot nearby, where it then waits for it); and where it
         is then."""
+        given_back: list[Step] = [Lease("elevator", False)]
+        if self._crossing(floor):
+            given_back.append(Lease("crossing", False))
         holding = self._holding_point(goal)
         if holding is not None:
             # On the hallway's axis, where the half turn back has room on both sides (in a
@@ -354,14 +407,14 @@ class RoutePlanner:
             direction = 1.0 if holding >= s else -1.0
             wait = self._drive_to(floor, floor.from_hallway(holding, 0.0), "to the holding point")
             back = self._turn(floor, self.travel_deg(floor, -direction), "facing back")
-            return [wait, Lease("elevator", False), back], holding + direction * 2 * self.pivot_mm
+            return [wait, *given_back, back], holding + direction * 2 * self.pivot_mm
         direction = 1.0 if goal.door.at_mm >= s else -1.0
         clear_at = s + direction * self._elevator_hold_mm
         if (goal.door.at_mm - clear_at) * direction <= 0:
-            return [Lease("elevator", False)], s
+            return given_back, s
         lane = self.lane_mm(floor, direction)
         away = self._lane(floor, clear_at, lane, stop=False, detail="away from the elevator")
-        return [away, Lease("elevator", False)], clear_at
+        return [away, *given_back], clear_at
 
     def _to_elevator(self, floor: Floor, s: float, goal: Place, asked: bool) -> list[Step]:
         """To the elevator's door; a fleet's robot holds short of it for its leases unless
@@ -408,6 +461,8 @@ class RoutePlanner:
                     else []  # at the elevator already: it asks where it stands
                 )
             steps = [*holds, *leases]
+            if self._crossing(floor):
+                steps.append(Lease("crossing", True))
         stop_at = self.turn_point_mm(elevator, direction)
         steps.append(self._lane(floor, stop_at, lane, detail=f"to the elevator on {floor.name}"))
         return steps
@@ -424,7 +479,9 @@ class RoutePlanner:
             return []
         return [self._lane(floor, pull_over_at, keep_right, stop=False, detail="along the hallway")]
 
-    def _ride(self, from_level: int, to_level: int, goal: Place) -> ElevatorRide:
+    def _ride(
+        self, from_level: int, to_level: int, goal: Place, crossing_held: bool = False
+    ) -> ElevatorRide:
         here, there = self.plan.floor(from_level), self.plan.floor(to_level)
         door_here, door_there = here.elevator, there.elevator
         assert door_here is not None and door_there is not None
@@ -435,7 +492,8 @@ class RoutePlanner:
         out_lane = self.lane_mm(there, direction)
         straight_across = goal.inside and self._across_from(goal.door, door_there.at_mm)
         out_to = out_lane if straight_across else self.out_to_mm(door_there, out_lane)
-        out = [
+        out: list[Move | Lease] = [Lease("crossing", True)] if self._crossing(there) else []
+        out += [
             self._drive_to(
                 there,
                 there.from_hallway(door_there.at_mm, out_to),
@@ -451,6 +509,7 @@ class RoutePlanner:
             enter=[
                 self._drive_to(here, here.behind_door(door_here, depth), "into the car"),
                 self._turn(here, facing + 180.0, "turning round in the car"),
+                *([Lease("crossing", False)] if crossing_held else []),
             ],
             exit=out,
         )
@@ -485,6 +544,8 @@ class RoutePlanner:
                     self._lane(floor, hold_at, lane, detail=f"short of {door.room}'s door")
                 )
             steps.append(Lease("loading_spot", True))
+            if self._crossing(floor):
+                steps.append(Lease("crossing", True))
         if not (goal.inside and self._across_from(door, s)):
             steps.append(
                 self._lane(
@@ -498,6 +559,8 @@ class RoutePlanner:
         if goal.inside:
             steps.append(self._turn(floor, self.facing_deg(floor, door), f"facing {door.room}"))
             steps.append(self.to_loading_spot(floor, door, f"into {door.room}"))
+            if spot is not None and self._crossing(floor):
+                steps.append(Lease("crossing", False))
             if held:
                 steps.append(Lease("holding_point", False))
             if spot is None:
@@ -572,3 +635,14 @@ class RoutePlanner:
         assert self.parking is not None
         moves = self._loading_to_spot(floor, base.door, self.parking)
         return [*moves, Lease("loading_spot", False)]
+
+
+def _holds(steps: list[Step], place: SharedPlace) -> bool:
+    """Whether a robot that went through ``steps`` holds ``place`` at their end."""
+    flat: list[Step] = []
+    for step in steps:
+        flat += [*step.enter, *step.exit] if isinstance(step, ElevatorRide) else [step]
+    for step in reversed(flat):
+        if isinstance(step, Lease) and step.place == place:
+            return step.want
+    return False
