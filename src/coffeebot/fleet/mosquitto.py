@@ -5,8 +5,9 @@ A building's real broker is configured by whoever runs it (docs/fleet.md shows t
 rules); this is the same configuration made on the spot. Every robot logs in as its robot id
 and may write only its own reports and odometry and read only its own orders and camera
 fixes, and the cameras' layer (``pattern`` rules with ``%u``); the dispatcher, camera
-service included, may read and write everything under ``coffeebot/v1``. Everyone may read
-the simulated clock's step markers and write its own (:mod:`coffeebot.fleet.in_step`).
+service included, may read and write everything under ``coffeebot/v1``. The robots here are
+simulated: everyone may also read the simulated clock's step markers and write its own
+(:mod:`coffeebot.fleet.in_step`).
 """
 
 from __future__ import annotations
@@ -59,17 +60,20 @@ class BrokerAddress:
         return f"mqtt://{self.host}:{self.port}"
 
 
-def acl_rules() -> str:
-    """The access rules: the dispatcher everything, each robot its own topics only."""
+def acl_rules(step_markers: bool = False) -> str:
+    """The access rules: the dispatcher everything, each robot its own topics only; with
+    ``step_markers`` (a simulated fleet, :mod:`coffeebot.fleet.in_step`) everyone may also
+    write its own step markers and read all of them."""
     lines = [f"user {DISPATCHER_USER}", f"topic readwrite {ROOT}/#", ""]
     for kind in (*ROBOT_TO_DISPATCHER, *ROBOT_TO_CAMERAS):
         lines.append(f"pattern write {ROOT}/robots/%u/{kind}")
     for kind in (*DISPATCHER_TO_ROBOT, *CAMERAS_TO_ROBOT):
         lines.append(f"pattern read {ROOT}/robots/%u/{kind}")
     lines.append(f"pattern read {DISPATCHER_CONNECTION}")
-    lines.append(f"pattern write {STEP_TOPIC}/%u")
-    lines.append(f"pattern read {STEP_TOPIC}/#")
     lines.append(f"pattern read {CAMERA_LAYER_TOPIC}")
+    if step_markers:
+        lines.append(f"pattern write {STEP_TOPIC}/%u")
+        lines.append(f"pattern read {STEP_TOPIC}/#")
     return "\n".join(lines) + "\n"
 
 
@@ -109,7 +113,7 @@ class Mosquitto:
                 check=True,
                 capture_output=True,
             )
-        (root / "acl").write_text(acl_rules())
+        (root / "acl").write_text(acl_rules(step_markers=True))
         self._config = root / "mosquitto.conf"
         self._config.write_text(
             f"listener {self.address.port} {host}\n"
