@@ -171,6 +171,13 @@ def test_a_fleet_robot_out_of_the_car_waits_for_the_loading_spot_at_the_holding_
         assert leases[:2] == [Lease("holding_point", True), Lease("elevator", True)]
         assert Lease("loading_spot", True) not in steps[: steps.index(Lease("elevator", True))]
         at = next(i for i, s in enumerate(steps) if isinstance(s, ElevatorRide))
+        # Out of the car onto the hallway's axis, where the turn towards the point has room
+        # (in the lane in front of the tea room's door, 250 mm from its jamb, it did not).
+        ride = steps[at]
+        assert isinstance(ride, ElevatorRide)
+        (out,) = [m.instruction for m in ride.exit if isinstance(m, Move)]
+        assert out.x_mm is not None and out.y_mm is not None
+        assert floor.to_hallway(out.x_mm, out.y_mm) == (elevator.at_mm, 0.0)
         hold, back, crossing_back, turn, ask = steps[at + 1 : at + 6]
         assert isinstance(hold, Move) and hold.instruction.action == "drive_to"
         assert (back, ask) == (Lease("elevator", False), Lease("loading_spot", True))

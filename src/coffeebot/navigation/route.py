@@ -492,6 +492,11 @@ class RoutePlanner:
         out_lane = self.lane_mm(there, direction)
         straight_across = goal.inside and self._across_from(goal.door, door_there.at_mm)
         out_to = out_lane if straight_across else self.out_to_mm(door_there, out_lane)
+        if straight_across and self.parking is not None and self._holding_point(goal) is not None:
+            # Bound for the holding point, on the hallway's axis: its turn towards the point
+            # has room there. In the lane in front of the room's door, 250 mm from its jamb,
+            # the turn was stopped by the jamb and a robot standing in the doorway for good.
+            out_to = 0.0
         out: list[Move | Lease] = [Lease("crossing", True)] if self._crossing(there) else []
         out += [
             self._drive_to(
