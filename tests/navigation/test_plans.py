@@ -352,7 +352,9 @@ def test_a_fleet_robot_from_the_tea_room_holds_the_spot_until_it_rides_off() -> 
         for i, s in enumerate(steps)
         if isinstance(s, Move) and s.instruction.detail == "out of Tea room"
     )
-    assert steps[out + 1] == Lease("loading_spot", False), "along the floor: given back once out"
+    turn, given_back = steps[out + 1 : out + 3]
+    assert isinstance(turn, Move) and turn.instruction.detail == "along the hallway"
+    assert given_back == Lease("loading_spot", False), "along the floor: given back once out"
 
 
 def test_a_fleet_robot_holds_short_of_the_elevator_on_its_side_near_the_wall() -> None:
@@ -451,6 +453,34 @@ def _crossing_holds(route_steps: list, held: set[str]) -> list[tuple[Move, set[s
             made.append((step, set(held)))
     assert "crossing" not in held, "the crossing still held at the route's end"
     return made
+
+
+def test_a_fleet_robot_turns_along_the_hallway_before_it_sets_off_from_a_door() -> None:
+    """Out of a door, a fleet's robot turns along the hallway on the spot before it follows
+    its lane: set off facing across, lane keeping leaves 45 degrees askew, and with the
+    passing lane 150 mm from the wall (a robot coming) one swung to 43 mm of the wall, where
+    its side sensor held it for good. Its centre is then in its keep-right lane."""
+    for start in ("Tea room", "205", "212", "305"):
+        loc = PLAN.find_room(start)
+        for goal in ("201", "213", "303"):
+            route = FLEET_ROBOT.route(
+                loc.floor.level, loc.door.at_mm, FLEET_ROBOT.door_place(goal), loc.door
+            )
+            made = [s.instruction for s in route.steps if isinstance(s, Move)]
+            if made[0].target_s_mm is None and made[1].action == "turn":
+                out, turn = made[:2]
+            else:
+                continue  # straight across into the car
+            lane = next(m for m in made if m.action == "follow_lane")
+            assert out.detail == f"out of {start}" and turn.detail == "along the hallway"
+            travel = 0.0 if lane.target_s_mm > loc.door.at_mm else 180.0
+            assert turn.heading_deg == loc.floor.hallway.heading_deg + travel
+            s, d = loc.floor.to_hallway(out.x_mm, out.y_mm)
+            _, inside = loc.floor.to_hallway(*loc.floor.behind_door(loc.door, 100.0))
+            facing_out = -90.0 if inside > 0 else 90.0
+            _, centre_d = pivot(s, d, facing_out, travel)
+            keep_right = FLEET_ROBOT.lane_mm(loc.floor, 1.0 if travel == 0.0 else -1.0)
+            assert abs(centre_d - keep_right) < 1.0
 
 
 def test_a_fleet_robot_holds_the_crossing_for_every_way_through_the_doors() -> None:

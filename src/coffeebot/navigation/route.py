@@ -259,6 +259,14 @@ class RoutePlanner:
             steps.append(
                 self._drive_to(floor, floor.from_hallway(s, out_to), f"out of {leave.room}")
             )
+            if self.parking is not None and not across:
+                # A fleet's robot turns along the hallway before it sets off: lane keeping
+                # from facing across sets off 45 degrees askew, and with the passing lane
+                # 150 mm from the wall (a robot coming) it swung to 43 mm of the wall, where
+                # the side sensor held it for good.
+                steps.append(
+                    self._turn(floor, self.travel_deg(floor, direction), "along the hallway")
+                )
             if from_base and not to_car_near:
                 steps.append(spot_given_back)
             if crossing_out:
