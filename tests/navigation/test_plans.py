@@ -10,6 +10,7 @@ from coffeebot.floorplan import Floor, load_floorplan
 from coffeebot.messages import DeliveryProblem, OrderStatus
 from coffeebot.navigation.control import SpeedProfile, wheel_speeds
 from coffeebot.navigation.lifecycle import DeliveryLifecycle
+from coffeebot.navigation.passing import right_lane_mm
 from coffeebot.navigation.path import route_legs
 from coffeebot.navigation.route import ElevatorRide, Lease, Move, RoutePlanner
 
@@ -521,3 +522,25 @@ def test_a_fleet_robot_holds_the_crossing_for_every_way_through_the_doors() -> N
     assert seen == ways
     # A single robot has the places alone: no leases at all.
     assert not any(isinstance(s, Lease) for s in PLANNER.route(3, 15000.0, PLANNER.base).steps)
+
+
+def test_a_fleet_robot_waits_for_the_tea_room_beside_the_lane_of_the_one_coming_out() -> None:
+    """Coming home along the hallway, a fleet's robot waits for the loading spot 1.2 m short
+    of its turn into the tea room as close to the wall as a robot passing another: in its
+    lane, a robot coming out of the room for an office had too narrow a gap to pass it and
+    stood in front of it for good, holding the crossing the waiting one needed."""
+    floor = PLAN.floor(2)
+    base = FLEET_ROBOT.base
+    for start in ("201", "213", "212"):
+        loc = PLAN.find_room(start)
+        steps = FLEET_ROBOT.route(2, loc.door.at_mm, base, loc.door).steps
+        ask = steps.index(Lease("loading_spot", True))
+        wait = steps[ask - 1]
+        assert isinstance(wait, Move) and wait.instruction.detail == "short of Tea room's door"
+        passing = right_lane_mm(
+            floor, 1.0, CONFIG.motion.passing_wall_distance_mm, CONFIG.geometry.width_mm
+        )
+        assert wait.instruction.lane_mm == passing
+        coming_out = FLEET_ROBOT.lane_mm(floor, -1.0)  # towards the offices
+        gap = abs(coming_out - passing) - CONFIG.geometry.width_mm
+        assert gap >= 200.0

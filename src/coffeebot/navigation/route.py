@@ -550,11 +550,20 @@ class RoutePlanner:
         spot = self.parking if goal.inside else None
         turn_at = self.turn_point_mm(door, direction)
         if spot is not None:
-            # A robot may be driving out of the door: wait for the room clear of its way.
+            # A robot may be driving out of the door: wait for the room clear of its way, as
+            # close to the wall as a robot passing another, so the one coming out can pass.
+            # In the lane (64 mm short of it after a short lane change) the gap was too
+            # narrow for the collision monitor: the one out of the room stood in front of
+            # it, holding the crossing it waited for.
             hold_at = turn_at - direction * self.nav.hold_short_mm
+            waiting_lane = right_lane_mm(
+                floor, direction, self.motion.passing_wall_distance_mm, self.body_width_mm
+            )
+            if lane * waiting_lane <= 0:
+                waiting_lane = lane  # the door is on the other side: wait in its lane
             if (hold_at - s) * direction > 0:
                 steps.append(
-                    self._lane(floor, hold_at, lane, detail=f"short of {door.room}'s door")
+                    self._lane(floor, hold_at, waiting_lane, detail=f"short of {door.room}'s door")
                 )
             steps.append(Lease("loading_spot", True))
             if self._crossing(floor):
