@@ -333,36 +333,27 @@ def test_a_fleet_robot_waits_for_the_elevator_in_the_tea_room_across_from_it() -
     """In front of the car's door it would stand in the way of a robot coming out of it."""
     base = FLEET_ROBOT.base
     steps = FLEET_ROBOT.route(2, base.door.at_mm, FLEET_ROBOT.door_place("305"), base.door).steps
-    assert steps[:2] == [Lease("elevator", True), Lease("crossing", True)]
-    assert isinstance(steps[2], Move) and steps[2].instruction.detail == "out of Tea room"
+    assert steps[0] == Lease("elevator", True)
+    assert isinstance(steps[1], Move) and steps[1].instruction.detail == "out of Tea room"
     assert steps.count(Lease("elevator", True)) == 1
 
 
-def test_a_fleet_robot_from_the_tea_room_for_the_car_holds_the_crossing_until_in_the_car() -> None:
+def test_a_fleet_robot_from_the_tea_room_holds_the_spot_until_it_rides_off() -> None:
     """Waiting in front of the tea room's door for the car's doors, it is in the way of a
-    robot turning in (given back at the door, a robot coming home turned in there, face to
-    face with it driving into the car, and both stood for good): it holds the crossing until
-    it is in the car. The loading spot it gives back once out of the door (held through the
-    wait and the ride, a minute a cup in which nobody was loaded)."""
+    robot turning in for the loading spot: the spot is given back once it has ridden off
+    (given back at the door, a robot coming home turned in there, face to face with it
+    driving into the car, and both stood for good)."""
     base = FLEET_ROBOT.base
     steps = FLEET_ROBOT.route(2, base.door.at_mm, FLEET_ROBOT.door_place("305"), base.door).steps
-    assert steps[:2] == [Lease("elevator", True), Lease("crossing", True)]
-    out, given_back = steps[2:4]
-    assert isinstance(out, Move) and out.instruction.detail == "out of Tea room"
-    assert given_back == Lease("loading_spot", False)
-    ride = steps[4]
-    assert isinstance(ride, ElevatorRide)
-    assert ride.enter[-1] == Lease("crossing", False)
-    assert [s for s in ride.enter if isinstance(s, Move)][-1].instruction.detail == (
-        "turning round in the car"
-    )
+    ride = next(i for i, s in enumerate(steps) if isinstance(s, ElevatorRide))
+    assert steps.index(Lease("loading_spot", False)) == ride + 1
     steps = FLEET_ROBOT.route(2, base.door.at_mm, FLEET_ROBOT.door_place("205"), base.door).steps
-    at = next(
+    out = next(
         i
         for i, s in enumerate(steps)
         if isinstance(s, Move) and s.instruction.detail == "out of Tea room"
     )
-    turn, given_back = steps[at + 1 : at + 3]
+    turn, given_back = steps[out + 1 : out + 3]
     assert isinstance(turn, Move) and turn.instruction.detail == "along the hallway"
     assert given_back == Lease("loading_spot", False), "along the floor: given back once out"
 

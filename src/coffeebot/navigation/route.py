@@ -230,7 +230,9 @@ class RoutePlanner:
         if asked:
             steps.extend(self._elevator_leases(goal))
         # A fleet's robot leaves the base room from the loading spot (:meth:`loading`),
-        # holding it until it is out in the hallway.
+        # holding it until it is out in the hallway; one leaving it for the car nearby (across
+        # the hallway in the CS building) until it has ridden off: waiting in front of the
+        # door for the car's doors, it is still in the way of a robot turning in for the spot.
         spot_given_back = Lease("loading_spot", False)
         from_base = (
             self.parking is not None
@@ -239,11 +241,8 @@ class RoutePlanner:
         )
         to_car_near = asked and from_base
         # Out of the base room across from the car, it holds the crossing until it is clear
-        # of both doorways; one leaving for that car until it is in the car: waiting in front
-        # of the door for the car's doors, it is in the way of a robot turning in. (It held
-        # the loading spot through the wait and the ride for that, a minute a cup in which
-        # nobody was loaded.)
-        crossing_out = from_base and self._crossing(floor)
+        # of both doorways (a robot leaving for that car holds the car, which is enough).
+        crossing_out = from_base and not to_car_near and self._crossing(floor)
         clear: list[Step] = []
         if leave is not None:
             s = leave.at_mm
@@ -268,14 +267,16 @@ class RoutePlanner:
                 steps.append(
                     self._turn(floor, self.travel_deg(floor, direction), "along the hallway")
                 )
-            if from_base:
+            if from_base and not to_car_near:
                 steps.append(spot_given_back)
-            if crossing_out and not to_car_near:
+            if crossing_out:
                 clear, s = self._out_of_crossing(floor, s, goal, lane, direction)
                 steps += clear
         if rides:
             steps.extend(self._to_elevator(floor, s, goal, asked))
             steps.append(self._ride(floor_level, goal.floor, goal, _holds(steps, "crossing")))
+            if to_car_near:
+                steps.append(spot_given_back)
             floor = self.plan.floor(goal.floor)
             assert floor.elevator is not None
             s = floor.elevator.at_mm
