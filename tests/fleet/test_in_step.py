@@ -98,22 +98,17 @@ async def exchange(
             await dispatcher.subscribe(robot_topic(ROBOT, "ack"), qos=1)
             await robot.subscribe(robot_topic(ROBOT, "+"), qos=1)
 
-            async def robot_side() -> None:
-                async for message in robot.messages:
+            async def receive(client: aiomqtt.Client, answers: bool) -> None:
+                """Note when each message came; the robot acknowledges each."""
+                async for message in client.messages:
                     payload = message.payload
                     assert isinstance(payload, bytes)
                     name = payload.decode()
                     seen.append((name, sent[name], clock.now()))
-                    reply = f"ack {name}"
-                    sent[reply] = clock.now()
-                    await robot.publish(robot_topic(ROBOT, "ack"), reply, qos=1)
-
-            async def dispatcher_side() -> None:
-                async for message in dispatcher.messages:
-                    payload = message.payload
-                    assert isinstance(payload, bytes)
-                    name = payload.decode()
-                    seen.append((name, sent[name], clock.now()))
+                    if answers:
+                        reply = f"ack {name}"
+                        sent[reply] = clock.now()
+                        await client.publish(robot_topic(ROBOT, "ack"), reply, qos=1)
 
             async def send() -> None:
                 for i in range(3):
@@ -123,7 +118,11 @@ async def exchange(
                         sent[name] = clock.now()
                         await dispatcher.publish(robot_topic(ROBOT, kind), name, qos=qos)
 
-            tasks = [asyncio.create_task(t()) for t in (robot_side, dispatcher_side, send)]
+            tasks = [
+                asyncio.create_task(receive(robot, answers=True)),
+                asyncio.create_task(receive(dispatcher, answers=False)),
+                asyncio.create_task(send()),
+            ]
             await run_clock(clock, until_s, pace_s)
             for task in tasks:
                 task.cancel()

@@ -243,7 +243,6 @@ class RoutePlanner:
         # Out of the base room across from the car, it holds the crossing until it is clear
         # of both doorways (a robot leaving for that car holds the car, which is enough).
         crossing_out = from_base and not to_car_near and self._crossing(floor)
-        clear: list[Step] = []
         if leave is not None:
             s = leave.at_mm
             direction = self._direction(floor, s, goal)
