@@ -135,6 +135,13 @@ class RoutePlanner:
         """Keep-right lane centre (``d``) when travelling towards ``direction`` (+1/-1 in s)."""
         return right_lane_mm(floor, direction, self.motion.wall_distance_mm, self.body_width_mm)
 
+    def waiting_lane_mm(self, floor: Floor, direction: float) -> float:
+        """Where a fleet's robot waits for a shared place: on its own side, as close to the
+        wall as a robot passing another, so one coming the other way passes it."""
+        return right_lane_mm(
+            floor, direction, self.motion.passing_wall_distance_mm, self.body_width_mm
+        )
+
     def side_lane_mm(self, floor: Floor, door: Door) -> float:
         """Lane centre at the wall distance on the door's side of the hallway."""
         return self.lane_mm(floor, -1.0 if door.side == "left" else 1.0)
@@ -439,9 +446,7 @@ class RoutePlanner:
             hold_at = elevator.at_mm - direction * self._elevator_hold_mm
             # On its own side, as close to the wall as a robot passing another: a robot
             # coming out of the car and going the other way passes it.
-            waiting_lane = right_lane_mm(
-                floor, direction, self.motion.passing_wall_distance_mm, self.body_width_mm
-            )
+            waiting_lane = self.waiting_lane_mm(floor, direction)
             if (hold_at - s) * direction >= self.nav.pull_over_mm:
                 # Way enough to change lanes on the way, as when pulling over to a door.
                 holds: list[Step] = [
@@ -555,9 +560,7 @@ class RoutePlanner:
             # narrow for the collision monitor: the one out of the room stood in front of
             # it, holding the crossing it waited for.
             hold_at = turn_at - direction * self.nav.hold_short_mm
-            waiting_lane = right_lane_mm(
-                floor, direction, self.motion.passing_wall_distance_mm, self.body_width_mm
-            )
+            waiting_lane = self.waiting_lane_mm(floor, direction)
             if lane * waiting_lane <= 0:
                 waiting_lane = lane  # the door is on the other side: wait in its lane
             if (hold_at - s) * direction > 0:
