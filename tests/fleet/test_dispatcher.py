@@ -37,6 +37,8 @@ CONFIG = load_robot_config(ROOT / "boards" / "coffeebot-v1.toml")
 RULES = OrderRules(rooms=set(PLAN.rooms), drinks=set(CONFIG.web.drinks))
 BASE = (41500.0, -700.0)
 """In the tea room, where free robots stand."""
+BOOT_S = 1.7e9
+"""When the robots' software started (their wall clock), unless a test restarts it."""
 
 
 class Clock:
@@ -62,8 +64,13 @@ class Harness:
         )
         self.dispatcher.link_up_since_s = 0.0
         self.seq = 0
+        self.boot_s: dict[str, float] = {}
+        """Each robot's software's start (BOOT_S unless restarted)."""
+        self.made: dict[str, int] = {}
+        """Delivery reports each robot has made in its current run."""
 
     async def robot_reports(self, robot: str, order_id: str | None = None, floor: int = 2) -> None:
+        """A state report saying the robot carries ``order_id``, with every report made."""
         self.seq += 1
         await self.dispatcher.on_connection(
             robot, Connection(state=ConnectionState.ONLINE, at_s=time.time())
@@ -73,6 +80,8 @@ class Harness:
             RobotState(
                 seq=self.seq,
                 at_s=time.time(),
+                boot_s=self.boot_s.get(robot, BOOT_S),
+                reports=self.made.get(robot, 0),
                 floor=floor,
                 x_mm=BASE[0],
                 y_mm=BASE[1],
@@ -86,6 +95,22 @@ class Harness:
             {"room": room, "drink": CONFIG.web.drinks[0], "name": "Ada"}, context=RULES
         )
         return await self.dispatcher.place(new, "test")
+
+    def report(self, robot: str, order_id: str, status: OrderStatus) -> DeliveryReport:
+        """The robot's next delivery report (made: whether it arrives is the test's)."""
+        seq = self.made.get(robot, 0)
+        self.made[robot] = seq + 1
+        boot_s = self.boot_s.get(robot, BOOT_S)
+        return DeliveryReport(seq=seq, boot_s=boot_s, order_id=order_id, status=status)
+
+    async def assigned_and_taken(self, robot: str) -> Order:
+        """An order placed, assigned to ``robot`` (the only free one) and acknowledged."""
+        placed = await self.order()
+        await self.dispatcher.tick()
+        sent = self.assignments(robot)[-1]
+        assert sent.order_id == placed.id
+        await self.dispatcher.on_ack(robot, Ack(ref=sent.assignment_id, accepted=True))
+        return placed
 
     def assignments(self, robot: str | None = None) -> list[Assignment]:
         return [
@@ -173,7 +198,7 @@ async def test_a_robot_that_dies_carrying_an_order_fails_it_with_the_reason(
     await harness.dispatcher.tick()
     (sent,) = harness.assignments("r1")
     await harness.dispatcher.on_ack("r1", Ack(ref=sent.assignment_id, accepted=True))
-    report = DeliveryReport(seq=0, order_id=placed.id, status=OrderStatus.ON_THE_WAY)
+    report = DeliveryReport(seq=0, boot_s=BOOT_S, order_id=placed.id, status=OrderStatus.ON_THE_WAY)
     await harness.dispatcher.on_delivery("r1", report)
     await harness.dispatcher.on_connection(
         "r1", Connection(state=ConnectionState.CONNECTION_BROKEN, at_s=time.time())
@@ -197,16 +222,55 @@ async def test_reports_apply_once_and_only_from_the_robot_that_has_the_order(
     holder = "r1" if harness.assignments("r1") else "r2"
     other = "r2" if holder == "r1" else "r1"
     await harness.dispatcher.on_ack(holder, Ack(ref=sent.assignment_id, accepted=True))
-    on_the_way = DeliveryReport(seq=3, order_id=placed.id, status=OrderStatus.ON_THE_WAY)
-    arrived = DeliveryReport(seq=4, order_id=placed.id, status=OrderStatus.ARRIVED)
+    on_the_way = DeliveryReport(
+        seq=3, boot_s=BOOT_S, order_id=placed.id, status=OrderStatus.ON_THE_WAY
+    )
+    arrived = DeliveryReport(seq=4, boot_s=BOOT_S, order_id=placed.id, status=OrderStatus.ARRIVED)
     await harness.dispatcher.on_delivery(holder, on_the_way)
     await harness.dispatcher.on_delivery(holder, arrived)
     await harness.dispatcher.on_delivery(holder, on_the_way)  # a repeat after a reconnect
     assert (await harness.dispatcher.get(placed.id)).status is OrderStatus.ARRIVED
-    foreign = DeliveryReport(seq=0, order_id=placed.id, status=OrderStatus.DELIVERED)
+    foreign = DeliveryReport(seq=0, boot_s=BOOT_S, order_id=placed.id, status=OrderStatus.DELIVERED)
     await harness.dispatcher.on_delivery(other, foreign)
     assert (await harness.dispatcher.get(placed.id)).status is OrderStatus.ARRIVED
     assert [a.kind for a in harness.actions(other)] == ["cancel"]
+
+
+async def test_a_state_report_overtaking_the_delivered_report_fails_nothing(
+    harness: Harness,
+) -> None:
+    """The two travel apart: a robot that has just delivered says it carries nothing, and
+    that state may arrive first (found under load: the order failed "restarted without
+    it", then the delivered report was refused)."""
+    await harness.robot_reports("r1")
+    placed = await harness.assigned_and_taken("r1")
+    for status in (OrderStatus.ON_THE_WAY, OrderStatus.ARRIVED):
+        await harness.dispatcher.on_delivery("r1", harness.report("r1", placed.id, status))
+    delivered = harness.report("r1", placed.id, OrderStatus.DELIVERED)
+    await harness.robot_reports("r1", None)  # made after the delivered report, here first
+    assert (await harness.dispatcher.get(placed.id)).status is OrderStatus.ARRIVED
+    await harness.dispatcher.on_delivery("r1", delivered)
+    assert (await harness.dispatcher.get(placed.id)).status is OrderStatus.DELIVERED
+
+
+async def test_a_restarted_robot_numbers_its_reports_afresh_and_they_apply(
+    harness: Harness,
+) -> None:
+    await harness.robot_reports("r1")
+    first = await harness.assigned_and_taken("r1")
+    for status in (OrderStatus.ON_THE_WAY, OrderStatus.ARRIVED, OrderStatus.DELIVERED):
+        await harness.dispatcher.on_delivery("r1", harness.report("r1", first.id, status))
+    old_run = harness.report("r1", first.id, OrderStatus.DELIVERED)
+    harness.boot_s["r1"], harness.made["r1"] = BOOT_S + 60.0, 0  # the software restarts
+    await harness.robot_reports("r1")
+    second = await harness.assigned_and_taken("r1")
+    await harness.dispatcher.on_delivery(
+        "r1", harness.report("r1", second.id, OrderStatus.ON_THE_WAY)
+    )
+    assert (await harness.dispatcher.get(second.id)).status is OrderStatus.ON_THE_WAY
+    await harness.dispatcher.on_delivery("r1", old_run)  # the old run's, delivered late
+    assert (await harness.dispatcher.get(second.id)).status is OrderStatus.ON_THE_WAY
+    assert harness.actions("r1") == [], "nothing to drop"
 
 
 async def test_a_place_freed_goes_to_the_next_robot_unasked(harness: Harness) -> None:

@@ -286,10 +286,11 @@ async def _free_robot(client: aiomqtt.Client) -> None:
 
     online = Connection(state=ConnectionState.ONLINE, at_s=time.time())
     await client.publish(robot_topic("robot-1", "connection"), encode(online), qos=1)
+    boot_s = time.time()
     for seq in range(10_000):
         state = RobotState(
-            seq=seq, at_s=time.time(), floor=2, x_mm=42000, y_mm=-1650, heading_deg=90,
-            health=HealthStatus.RUNNING,
+            seq=seq, at_s=time.time(), boot_s=boot_s, reports=0, floor=2, x_mm=42000,
+            y_mm=-1650, heading_deg=90, health=HealthStatus.RUNNING,
         )
         await client.publish(robot_topic("robot-1", "state"), encode(state))
         await asyncio.sleep(0.1)

@@ -21,10 +21,13 @@ The rules, and why:
   carrying out fails after ``lost_after_s`` more with the reason, so it does not stay "on
   the way" forever. Its shared places are freed. While the dispatcher itself has no broker,
   nobody is declared stale: it cannot hear anyone.
-- **Reports are applied in order, once.** Each robot numbers its delivery reports; a repeat
-  after a reconnect is ignored, and a report for an order the robot does not have (any
-  more) is refused and the robot is told to drop it. Nothing is served twice: an order that
-  left the tea room is never given to another robot.
+- **Reports are applied in order, once.** Each robot numbers its delivery reports afresh in
+  each run of its software; a repeat after a reconnect is ignored, and a report for an order
+  the robot does not have (any more) is refused and the robot is told to drop it. A state
+  report's word on the robot's order is taken only once every delivery report made before
+  it has been applied: the two travel apart, and a robot that has just reported its cup
+  delivered says it carries nothing, perhaps before the report arrives. Nothing is served
+  twice: an order that left the tea room is never given to another robot.
 - **Shared places** (the elevator, the loading spot) are lent by a :class:`LeaseBook`: one
   robot at a time, in the order they asked, expiring unless renewed.
 - **Traffic.** Each online robot is told where the others are (:meth:`Dispatcher.traffic`,
@@ -103,8 +106,10 @@ class RobotRecord:
     assignment: Assignment | None = None
     """Sent and not acknowledged yet."""
     sent_at_s: float = 0.0
+    boot_s: float | None = None
+    """The run of the robot's software last heard from (``RobotState.boot_s``)."""
     last_report: int = -1
-    """The sequence number of the last delivery report applied."""
+    """The sequence number of the last delivery report applied (in that run)."""
 
     @property
     def stale(self) -> bool:
@@ -177,8 +182,23 @@ class Dispatcher:
         else:
             self._went_stale(record, f"its connection is {connection.state.value}")
 
+    @staticmethod
+    def _current_run(record: RobotRecord, boot_s: float, reports_before: int) -> bool:
+        """False for a message from an earlier run of the robot's software, delivered late.
+        A later run numbers its reports afresh; ``reports_before``: how many it says it made
+        before this message (everything the dispatcher missed is taken as known)."""
+        if record.boot_s is not None and boot_s < record.boot_s:
+            return False
+        if boot_s != record.boot_s:
+            record.boot_s = boot_s
+            record.last_report = reports_before - 1
+            record.state = None
+        return True
+
     async def on_state(self, robot: str, state: RobotState) -> None:
         record = self.robot(robot)
+        if not self._current_run(record, state.boot_s, state.reports):
+            return
         if (
             record.state is not None
             and state.seq <= record.state.seq
@@ -195,6 +215,8 @@ class Dispatcher:
         """The robot's word on its order against the dispatcher's book."""
         state = record.state
         assert state is not None
+        if state.reports - 1 != record.last_report:
+            return  # reports it had made are still on their way, or came after it
         theirs, ours = state.order_id, record.order_id
         if theirs == ours or (theirs is None and record.assignment is not None):
             return
@@ -212,6 +234,8 @@ class Dispatcher:
     async def on_delivery(self, robot: str, report: DeliveryReport) -> None:
         record = self.robot(robot)
         self._heard(record)
+        if not self._current_run(record, report.boot_s, report.seq):
+            return
         if report.seq <= record.last_report:
             return  # a repeat after a reconnect
         record.last_report = report.seq

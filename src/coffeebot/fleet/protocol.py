@@ -90,6 +90,11 @@ class RobotState(FleetMessage):
 
     seq: int = Field(ge=0)
     at_s: float
+    boot_s: float
+    """When this run of the robot's software started (its wall clock): numbers start afresh."""
+    reports: int = Field(ge=0)
+    """Delivery reports made so far in this run: the state's word on its order holds only
+    where the dispatcher has every one of them (they travel apart, and may be behind)."""
     floor: int | None = None
     x_mm: float | None = None
     y_mm: float | None = None
@@ -112,6 +117,8 @@ class DeliveryReport(FleetMessage):
     the dispatcher sees a gap or a repeat after a reconnect."""
 
     seq: int = Field(ge=0)
+    boot_s: float
+    """The run of the robot's software that made it (``RobotState.boot_s``)."""
     order_id: str = Field(min_length=1, max_length=64)
     status: OrderStatus
     detail: str = Field("", max_length=500)

@@ -182,7 +182,9 @@ class FleetBridge(Module):
         self.counters = BridgeCounters()
         self._outbox: deque[DeliveryReport] = deque()
         self._sent = asyncio.Event()
-        self._report_seq = itertools.count()
+        self.boot_s = time.time()
+        self._reports = 0
+        """Delivery reports made (the next one's number)."""
         self._state_seq = itertools.count()
         self._order: str | None = None
         self._cancelled: set[str] = set()
@@ -280,7 +282,8 @@ class FleetBridge(Module):
             self._order = None
         self._outbox.append(
             DeliveryReport(
-                seq=next(self._report_seq),
+                seq=self._reports,
+                boot_s=self.boot_s,
                 order_id=update.order_id,
                 status=update.status,
                 detail=update.detail[:500],
@@ -288,6 +291,7 @@ class FleetBridge(Module):
                 problem=update.problem,
             )
         )
+        self._reports += 1
         self._sent.set()
 
     async def _send_reports(self, client: aiomqtt.Client) -> None:
@@ -320,6 +324,8 @@ class FleetBridge(Module):
         return RobotState(
             seq=next(self._state_seq),
             at_s=time.time(),
+            boot_s=self.boot_s,
+            reports=self._reports,
             floor=None if pose is None else pose.floor,
             x_mm=None if pose is None else pose.x_mm,
             y_mm=None if pose is None else pose.y_mm,
