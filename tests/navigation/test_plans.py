@@ -338,15 +338,22 @@ def test_a_fleet_robot_waits_for_the_elevator_in_the_tea_room_across_from_it() -
     assert steps.count(Lease("elevator", True)) == 1
 
 
-def test_a_fleet_robot_from_the_tea_room_holds_the_spot_until_it_rides_off() -> None:
+def test_a_fleet_robot_from_the_tea_room_holds_the_spot_until_it_is_in_the_car() -> None:
     """Waiting in front of the tea room's door for the car's doors, it is in the way of a
-    robot turning in for the loading spot: the spot is given back once it has ridden off
+    robot turning in for the loading spot: the spot is given back once it is in the car
     (given back at the door, a robot coming home turned in there, face to face with it
-    driving into the car, and both stood for good)."""
+    driving into the car, and both stood for good), not after the ride (held through the
+    ride and out on the other floor, the spot was the fleet's bottleneck)."""
     base = FLEET_ROBOT.base
     steps = FLEET_ROBOT.route(2, base.door.at_mm, FLEET_ROBOT.door_place("305"), base.door).steps
-    ride = next(i for i, s in enumerate(steps) if isinstance(s, ElevatorRide))
-    assert steps.index(Lease("loading_spot", False)) == ride + 1
+    (ride,) = [s for s in steps if isinstance(s, ElevatorRide)]
+    assert Lease("loading_spot", False) not in steps
+    turned_in_car = next(
+        i
+        for i, s in enumerate(ride.enter)
+        if isinstance(s, Move) and s.instruction.detail == "turning round in the car"
+    )
+    assert Lease("loading_spot", False) in ride.enter[turned_in_car + 1 :]
     steps = FLEET_ROBOT.route(2, base.door.at_mm, FLEET_ROBOT.door_place("205"), base.door).steps
     out = next(
         i
@@ -382,7 +389,7 @@ def test_a_fleet_robot_gives_the_elevator_back_once_clear_of_its_door() -> None:
     base = FLEET_ROBOT.base
     steps = FLEET_ROBOT.route(2, base.door.at_mm, FLEET_ROBOT.door_place("305"), base.door).steps
     ride = next(i for i, s in enumerate(steps) if isinstance(s, ElevatorRide))
-    away, back = [s for s in steps[ride + 1 :] if s != Lease("loading_spot", False)][:2]
+    away, back = steps[ride + 1 : ride + 3]
     elevator = PLAN.floor(3).elevator
     assert elevator is not None
     assert isinstance(away, Move) and away.instruction.target_s_mm == elevator.at_mm - HOLD_MM

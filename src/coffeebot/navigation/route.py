@@ -66,8 +66,8 @@ class Lease:
 @dataclass(frozen=True)
 class ElevatorRide:
     """Ride from ``from_floor`` to ``to_floor``: moves for before the call, in, and out (a
-    fleet's robot gives the crossing back once in the car and takes it before it comes out,
-    where the car faces the base room)."""
+    fleet's robot gives the crossing and the loading spot back once in the car and takes the
+    crossing before it comes out, where the car faces the base room)."""
 
     from_floor: int
     to_floor: int
@@ -238,7 +238,7 @@ class RoutePlanner:
             steps.extend(self._elevator_leases(goal))
         # A fleet's robot leaves the base room from the loading spot (:meth:`loading`),
         # holding it until it is out in the hallway; one leaving it for the car nearby (across
-        # the hallway in the CS building) until it has ridden off: waiting in front of the
+        # the hallway in the CS building) until it is in the car: waiting in front of the
         # door for the car's doors, it is still in the way of a robot turning in for the spot.
         spot_given_back = Lease("loading_spot", False)
         from_base = (
@@ -280,9 +280,10 @@ class RoutePlanner:
                 steps += clear
         if rides:
             steps.extend(self._to_elevator(floor, s, goal, asked))
-            steps.append(self._ride(floor_level, goal.floor, goal, _holds(steps, "crossing")))
+            in_the_car = [Lease("crossing", False)] if _holds(steps, "crossing") else []
             if to_car_near:
-                steps.append(spot_given_back)
+                in_the_car.append(spot_given_back)
+            steps.append(self._ride(floor_level, goal.floor, goal, in_the_car))
             floor = self.plan.floor(goal.floor)
             assert floor.elevator is not None
             s = floor.elevator.at_mm
@@ -492,8 +493,10 @@ class RoutePlanner:
         return [self._lane(floor, pull_over_at, keep_right, stop=False, detail="along the hallway")]
 
     def _ride(
-        self, from_level: int, to_level: int, goal: Place, crossing_held: bool = False
+        self, from_level: int, to_level: int, goal: Place, given_back: list[Lease] | None = None
     ) -> ElevatorRide:
+        """The ride to ``goal``'s floor; ``given_back``: the places it no longer needs once
+        in the car (it is in nobody's way there)."""
         here, there = self.plan.floor(from_level), self.plan.floor(to_level)
         door_here, door_there = here.elevator, there.elevator
         assert door_here is not None and door_there is not None
@@ -526,7 +529,7 @@ class RoutePlanner:
             enter=[
                 self._drive_to(here, here.behind_door(door_here, depth), "into the car"),
                 self._turn(here, facing + 180.0, "turning round in the car"),
-                *([Lease("crossing", False)] if crossing_held else []),
+                *(given_back or []),
             ],
             exit=out,
         )
