@@ -145,6 +145,25 @@ class World:
                 surfaces = surfaces + robot.outline()
         return surfaces
 
+    def near(
+        self, level: int, x: float, y: float, radius: float, without: WorldRobot | None = None
+    ) -> Surfaces:
+        """What of floor ``level`` comes within ``radius`` of (x, y) now, the robots but
+        ``without`` included: ``surfaces(level, without=...)`` narrowed to it, element for
+        element, without gathering the whole floor at every physics step (a robot whose
+        centre is too far for any side of it to reach is passed over)."""
+        scene = self._scene(level, None)
+        found = scene.take(*scene.near(x, y, radius))
+        for robot in self.robots:
+            if robot is without or robot.floor_level != level:
+                continue
+            s = robot.body.state
+            if math.hypot(s.x - x, s.y - y) - robot.half_diagonal_mm > radius + 1.0:
+                continue
+            outline = robot.outline()
+            found = found + outline.take(*outline.near(x, y, radius))
+        return found
+
     def _scene(self, level: int, t_s: float | None) -> Surfaces:
         """Floor ``level`` without the robots: the plan, the elevator, the obstacles. Kept
         while nothing in it can have changed (every robot asks for it every physics step)."""
@@ -257,7 +276,9 @@ class WorldRobot:
         self._tof_rng, self._gyro_rng, self._uwb_rng, self._slip_rng = rngs
         reach = max((math.hypot(m.x_mm, m.y_mm) for m in spec.sensors), default=0.0)
         self._cast_radius = world.optics.max_path_mm + reach
-        self._contact_radius = math.hypot(spec.length_mm, spec.width_mm) / 2 + 1.0
+        self.half_diagonal_mm = math.hypot(spec.length_mm, spec.width_mm) / 2
+        """How far from its centre the body reaches."""
+        self._contact_radius = self.half_diagonal_mm + 1.0
         self.body = RobotBody(spec, pose)
         self.floor_level = world.plan.floor(floor).level
         self._command_until = math.inf
@@ -329,11 +350,11 @@ class WorldRobot:
         self, x: float, y: float, theta: float, inflate_mm: float = 0.0
     ) -> dict[str, tuple[float, float]]:
         """Elements touching the footprint at a pose (grown by ``inflate_mm`` on each side)."""
-        surfaces = self.surfaces()
-        segments, cylinders = surfaces.near(x, y, self._contact_radius + inflate_mm)
-        if not len(segments) and not len(cylinders):
+        near = self.world.near(
+            self.floor_level, x, y, self._contact_radius + inflate_mm, without=self
+        )
+        if not len(near.segments) and not len(near.cylinders):
             return {}  # the usual case, every physics step: nothing within reach
-        near = surfaces.take(segments, cylinders)
         spec = self.spec
         found = footprint_contacts(
             near,
@@ -425,8 +446,7 @@ class WorldRobot:
         if key not in self._returns:
             if self._layers is None:
                 s = self.body.state
-                surfaces = self.surfaces()
-                near = surfaces.take(*surfaces.near(s.x, s.y, self._cast_radius))
+                near = self.world.near(self.floor_level, s.x, s.y, self._cast_radius, self)
                 self._layers = self.sensors.layers(s.x, s.y, s.theta, near)
             self._returns[key] = self.sensors.returns(self._layers, sensor, roi)
         return self._returns[key]
