@@ -542,8 +542,21 @@ def test_a_fleet_robot_waits_for_the_tea_room_beside_the_lane_of_the_one_coming_
         loc = PLAN.find_room(start)
         steps = FLEET_ROBOT.route(2, loc.door.at_mm, base, loc.door).steps
         ask = steps.index(Lease("loading_spot", True))
-        wait = steps[ask - 1]
-        assert isinstance(wait, Move) and wait.instruction.detail == "short of Tea room's door"
+        (wait,) = [
+            s
+            for s in steps[:ask]
+            if isinstance(s, Move) and s.instruction.detail == "short of Tea room's door"
+        ]
+        # From 213, 3 m away across the hallway, it squares up there: a lane change over
+        # 1.6 m ended 220 mm off the lane and 17 degrees askew, a corner in the way of the
+        # robot coming out of the room (it stood there for good, found in the benchmark).
+        squared = [m.instruction for m in steps[steps.index(wait) + 1 : ask]]
+        if start == "213":
+            (square,) = squared
+            assert square.detail == "square to the lane"
+            assert square.heading_deg == FLEET_ROBOT.travel_deg(floor, 1.0)
+        else:
+            assert squared == []
         passing = right_lane_mm(
             floor, 1.0, CONFIG.motion.passing_wall_distance_mm, CONFIG.geometry.width_mm
         )

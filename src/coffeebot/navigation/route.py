@@ -444,41 +444,57 @@ class RoutePlanner:
         if self.parking is None:
             steps = self._keep_right_first(floor, s, elevator, direction, lane)
         else:
-            hold_at = elevator.at_mm - direction * self._elevator_hold_mm
             # On its own side, as close to the wall as a robot passing another: a robot
             # coming out of the car and going the other way passes it.
-            waiting_lane = self.waiting_lane_mm(floor, direction)
-            if (hold_at - s) * direction >= self.nav.pull_over_mm:
-                # Way enough to change lanes on the way, as when pulling over to a door.
-                holds: list[Step] = [
-                    self._lane(floor, hold_at, waiting_lane, detail="short of the elevator")
-                ]
-            else:
-                # Nearer (out of an office beside it, 313 4 mm short of the hold point:
-                # a lane of 4 mm left it in the way of the robot coming out of the car):
-                # square to the hallway, then into that lane along the way there is, up to
-                # ``hold_short_mm`` short of the turn, room for the robot coming out to turn
-                # into its lane, and square again there (lane keeping over so short a way
-                # stops ~100 mm short of the lane, askew). Driven diagonally at the lane, the
-                # front sensors read the wall near enough to stop it mid-hallway.
-                wait_at = self.turn_point_mm(elevator, direction) - direction * (
-                    self.nav.hold_short_mm
-                )
-                holds = (
-                    [
-                        self._turn(floor, self.travel_deg(floor, direction), "along the hallway"),
-                        self._lane(floor, wait_at, waiting_lane, detail="short of the elevator"),
-                        self._turn(floor, self.travel_deg(floor, direction), "square to the lane"),
-                    ]
-                    if (wait_at - s) * direction > 0
-                    else []  # at the elevator already: it asks where it stands
-                )
+            hold_at = elevator.at_mm - direction * self._elevator_hold_mm
+            holds = self._wait_beside_wall(
+                floor,
+                s,
+                hold_at,
+                self.turn_point_mm(elevator, direction),
+                direction,
+                self.waiting_lane_mm(floor, direction),
+                "short of the elevator",
+            )
             steps = [*holds, *leases]
             if self._crossing(floor):
                 steps.append(Lease("crossing", True))
         stop_at = self.turn_point_mm(elevator, direction)
         steps.append(self._lane(floor, stop_at, lane, detail=f"to the elevator on {floor.name}"))
         return steps
+
+    def _wait_beside_wall(
+        self,
+        floor: Floor,
+        s: float,
+        hold_at: float,
+        turn_at: float,
+        direction: float,
+        waiting_lane: float,
+        detail: str,
+    ) -> list[Step]:
+        """To where a fleet's robot waits for a shared place, in ``waiting_lane`` (beside the
+        wall): ``hold_at`` with way enough to change lanes on the way, as when pulling over
+        to a door. Nearer (out of an office beside it: 313 4 mm short of the elevator's hold
+        point, a lane of 4 mm left it in the way of the robot coming out of the car; 213, 3 m
+        from the tea room across the hallway, a lane change over 1.6 m left it 220 mm off the
+        lane and 17 degrees askew, its corner in the way of the robot coming out of the room
+        for good): square to the hallway, then into that lane along the way there is, up to
+        ``hold_short_mm`` short of the turn at ``turn_at``, room for the robot coming out to
+        turn into its lane, and square again there (lane keeping over so short a way stops
+        ~100 mm short of the lane, askew). Driven diagonally at the lane, the front sensors
+        read the wall near enough to stop it mid-hallway."""
+        if (hold_at - s) * direction >= self.nav.pull_over_mm:
+            return [self._lane(floor, hold_at, waiting_lane, detail=detail)]
+        wait_at = turn_at - direction * self.nav.hold_short_mm
+        if (wait_at - s) * direction <= 0:
+            return []  # there already: it waits where it stands
+        along = self.travel_deg(floor, direction)
+        return [
+            self._turn(floor, along, "along the hallway"),
+            self._lane(floor, wait_at, waiting_lane, detail=detail),
+            self._turn(floor, along, "square to the lane"),
+        ]
 
     def _keep_right_first(
         self, floor: Floor, s: float, door: Door, direction: float, lane: float
@@ -566,10 +582,9 @@ class RoutePlanner:
             waiting_lane = self.waiting_lane_mm(floor, direction)
             if lane * waiting_lane <= 0:
                 waiting_lane = lane  # the door is on the other side: wait in its lane
-            if (hold_at - s) * direction > 0:
-                steps.append(
-                    self._lane(floor, hold_at, waiting_lane, detail=f"short of {door.room}'s door")
-                )
+            steps += self._wait_beside_wall(
+                floor, s, hold_at, turn_at, direction, waiting_lane, f"short of {door.room}'s door"
+            )
             steps.append(Lease("loading_spot", True))
             if self._crossing(floor):
                 steps.append(Lease("crossing", True))
