@@ -313,3 +313,28 @@ def test_turning_out_keeps_the_front_corner_the_margin_from_a_pole() -> None:
     start = (x, y, heading)
     assert plain.admissible(xs, ys, headings, start, 0.5, plain.body)[0][0]
     assert not narrow.admissible(xs, ys, headings, start, 0.5, narrow.body)[0][0]
+
+
+def test_waiting_for_something_ahead_it_does_not_turn_towards_a_lane_across() -> None:
+    """Told to cross the hallway (to the car, to a door on the left) and waiting for what
+    stands ahead, it holds its heading: turned on the spot towards the lane across, the
+    body swings its rear about the axle towards the wall beside it (in the fleet benchmark
+    a robot waiting beside the wall turned 14 degrees, and its side sensor, reading the
+    wall at 49 mm, held it there 71 s while it held the car)."""
+    module = module_with_box(seen_for_s=3.0, box_mm=500, seeing=frozenset({2, 3, 4, 5}))
+    sighting = module.controller.detour.obstacle_ahead(FLOOR, START_S, -LANE, 1.0, 3.0)
+    assert sighting is not None
+    x, y = FLOOR.from_hallway(START_S, LANE)
+    pose = estimate_at(2, x, y, FLOOR.hallway.heading_deg)
+    across = MoveInstruction(
+        id=1,
+        action="follow_lane",
+        floor=2,
+        target_s_mm=sighting.far_edge(1.0) + 1000.0,
+        lane_mm=-LANE,
+        stop=True,
+        avoid=True,
+    )
+    commands = [module.controller.step(across, pose, 3.0 + 0.05 * k, 0.05, 500.0) for k in range(5)]
+    assert module.controller.detour.phase is Phase.CONFIRMING
+    assert all(c.speed_mm_s == 0.0 and c.yaw_rate_dps == 0.0 for c in commands)

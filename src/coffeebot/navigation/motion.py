@@ -345,9 +345,15 @@ class MotionController:
                 ins, floor, pose, detour_lane, direction, target, now, dt, limit, remaining
             )
         heading = lane_heading_deg(travel, (lane - d) * direction, cfg)
-        return self._command(
-            target, turn_rate_dps(pose.heading_deg, heading, cfg), dt, status, limit
-        )
+        rate = turn_rate_dps(pose.heading_deg, heading, cfg)
+        if target <= 0.0 and self.speed < cfg.creep_speed_mm_s:
+            # Standing to wait (for something ahead): the lane's heading is for driving.
+            # Turned towards a lane across the hallway where it stood, the body swung its
+            # rear about the axle towards the wall beside it (a robot holding the car,
+            # waiting beside the wall for a robot coming out of the car to pass, turned 14
+            # degrees; its side sensor read the wall at 49 mm and held it there 71 s).
+            rate = 0.0
+        return self._command(target, rate, dt, status, limit)
 
     def _lane(
         self,
