@@ -81,6 +81,8 @@ class MotionController:
         self.footprint = footprint
         self.profile = SpeedProfile.from_config(cfg)
         self.dwa = DynamicWindow(cfg, footprint.axle_x_mm)
+        self._spin_room = Clearances(wall_mm=cfg.turn_clearance_mm, obstacle_mm=0.0)
+        """What a turn on the spot keeps to the walls before it is begun."""
         self.speed = 0.0
         self.yaw_rate = 0.0
         self._instruction_id: int | None = None
@@ -224,9 +226,8 @@ class MotionController:
         rear corners swing 522 mm about the axle, and a turn begun beside another robot or
         too near a wall ends pressed against it (the collision monitor stops the turn, and
         neither moves). Refused, the robot stands blocked until the sweep clears."""
-        spin_room = Clearances(wall_mm=self.cfg.turn_clearance_mm, obstacle_mm=0.0)
         if abs(self.yaw_rate) < TURNING_DPS and not self._turn_is_free(
-            pose, wanted, now, spin_room
+            pose, wanted, now, self._spin_room
         ):
             error = wrap_deg(wanted - pose.heading_deg)
             why = f"no room to turn, {error:.0f} deg"
@@ -346,12 +347,17 @@ class MotionController:
             )
         heading = lane_heading_deg(travel, (lane - d) * direction, cfg)
         rate = turn_rate_dps(pose.heading_deg, heading, cfg)
-        if target <= 0.0 and self.speed < cfg.creep_speed_mm_s:
-            # Standing to wait (for something ahead): the lane's heading is for driving.
-            # Turned towards a lane across the hallway where it stood, the body swung its
-            # rear about the axle towards the wall beside it (a robot holding the car,
-            # waiting beside the wall for a robot coming out of the car to pass, turned 14
-            # degrees; its side sensor read the wall at 49 mm and held it there 71 s).
+        if (
+            target <= 0.0
+            and self.speed < cfg.creep_speed_mm_s
+            and abs(self.yaw_rate) < TURNING_DPS
+            and not self._turn_is_free(pose, heading, now, self._spin_room)
+        ):
+            # Standing to wait (for something ahead), it turns towards the lane's heading
+            # only as a turn on the spot is begun: if the sweep has room. A robot holding
+            # the car, waiting beside the wall to cross to it, turned 14 degrees towards the
+            # lane across and swung its rear about the axle to 49 mm of the wall, where its
+            # side sensor held it 71 s.
             rate = 0.0
         return self._command(target, rate, dt, status, limit)
 
