@@ -53,19 +53,23 @@ def module_with_box(
 
 
 def stop_in_lane(
-    controller: MotionController, target_s: float, room: str | None = None
+    controller: MotionController,
+    target_s: float,
+    room: str | None = None,
+    at_mm: float = LANE,
+    lane_mm: float = LANE,
 ) -> list[Command]:
-    """Five control periods of a robot at ``START_S`` in ``LANE``, at rest, told to drive
-    in the lane to a stop at ``target_s`` (at ``room``'s door, if given), going round what
-    it must."""
-    x, y = FLOOR.from_hallway(START_S, LANE)
+    """Five control periods of a robot at ``START_S`` in ``at_mm``, at rest, told to drive
+    in ``lane_mm`` to a stop at ``target_s`` (at ``room``'s door, if given), going round
+    what it must."""
+    x, y = FLOOR.from_hallway(START_S, at_mm)
     pose = estimate_at(2, x, y, FLOOR.hallway.heading_deg)
     instruction = MoveInstruction(
         id=1,
         action="follow_lane",
         floor=2,
         target_s_mm=target_s,
-        lane_mm=LANE,
+        lane_mm=lane_mm,
         stop=True,
         avoid=True,
         target_room=room,
@@ -331,20 +335,7 @@ def test_waiting_beside_the_wall_it_does_not_turn_towards_a_lane_across() -> Non
 
     def waiting(lane_mm: float) -> list[Command]:
         module = module_with_box(3.0, 800, frozenset({2, 3, 4, 5}), lane_mm)
-        x, y = FLOOR.from_hallway(START_S, lane_mm)
-        pose = estimate_at(2, x, y, FLOOR.hallway.heading_deg)
-        across = MoveInstruction(
-            id=1,
-            action="follow_lane",
-            floor=2,
-            target_s_mm=START_S + 3000.0,
-            lane_mm=-LANE,
-            stop=True,
-            avoid=True,
-        )
-        commands = [
-            module.controller.step(across, pose, 3.0 + 0.05 * k, 0.05, 500.0) for k in range(5)
-        ]
+        commands = stop_in_lane(module.controller, START_S + 3000.0, None, lane_mm, -LANE)
         assert module.controller.detour.phase is Phase.CONFIRMING
         assert all(c.speed_mm_s == 0.0 for c in commands)
         return commands

@@ -226,9 +226,7 @@ class MotionController:
         rear corners swing 522 mm about the axle, and a turn begun beside another robot or
         too near a wall ends pressed against it (the collision monitor stops the turn, and
         neither moves). Refused, the robot stands blocked until the sweep clears."""
-        if abs(self.yaw_rate) < TURNING_DPS and not self._turn_is_free(
-            pose, wanted, now, self._spin_room
-        ):
+        if self._no_room_to_begin_turn(pose, wanted, now):
             error = wrap_deg(wanted - pose.heading_deg)
             why = f"no room to turn, {error:.0f} deg"
             status = self._status(ins.id, MotionState.BLOCKED, now, remaining, why)
@@ -350,8 +348,7 @@ class MotionController:
         if (
             target <= 0.0
             and self.speed < cfg.creep_speed_mm_s
-            and abs(self.yaw_rate) < TURNING_DPS
-            and not self._turn_is_free(pose, heading, now, self._spin_room)
+            and self._no_room_to_begin_turn(pose, heading, now)
         ):
             # Standing to wait (for something ahead), it turns towards the lane's heading
             # only as a turn on the spot is begun: if the sweep has room. A robot holding
@@ -479,6 +476,13 @@ class MotionController:
     ) -> Command:
         status = self._status(ins.id, MotionState.BLOCKED, now, remaining, "no way past")
         return self._command(0.0, 0.0, dt, status, limit)
+
+    def _no_room_to_begin_turn(self, pose: PoseEstimate, wanted_deg: float, now: float) -> bool:
+        """Standing (not turning yet), whether the turn on the spot to ``wanted_deg`` lacks
+        the room a turn keeps to the walls (``turn_clearance_mm``)."""
+        return abs(self.yaw_rate) < TURNING_DPS and not self._turn_is_free(
+            pose, wanted_deg, now, self._spin_room
+        )
 
     def _turn_is_free(
         self, pose: PoseEstimate, aim_deg: float, now: float, clearances: Clearances | None = None

@@ -37,6 +37,7 @@ ride).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from coffeebot.config import MotionConfig, NavigationConfig
@@ -509,7 +510,7 @@ class RoutePlanner:
         return [self._lane(floor, pull_over_at, keep_right, stop=False, detail="along the hallway")]
 
     def _ride(
-        self, from_level: int, to_level: int, goal: Place, given_back: list[Lease] | None = None
+        self, from_level: int, to_level: int, goal: Place, given_back: Sequence[Lease] = ()
     ) -> ElevatorRide:
         """The ride to ``goal``'s floor; ``given_back``: the places it no longer needs once
         in the car (it is in nobody's way there)."""
@@ -545,7 +546,7 @@ class RoutePlanner:
             enter=[
                 self._drive_to(here, here.behind_door(door_here, depth), "into the car"),
                 self._turn(here, facing + 180.0, "turning round in the car"),
-                *(given_back or []),
+                *given_back,
             ],
             exit=out,
         )
