@@ -96,12 +96,20 @@ async def test_the_customer_and_the_inspector_see_the_robot_wait_for_a_cart_a_ca
     await expect(inspector.locator("#map polygon.camera-field.down")).to_have_count(0)
     await expect(inspector.locator("#camera-legend")).to_be_visible()
     # Following the robot, which faces -x: the cart lies ahead, to its left on screen.
-    robot = inspector.locator("#map g.robot[data-label=estimated] rect")
-    # The map is drawn anew with each pose: wait for the robot drawn, as for the cart.
-    await expect(robot).to_be_visible()
-    cart_box, robot_box = await cart.bounding_box(), await robot.bounding_box()
-    assert cart_box is not None and robot_box is not None
-    assert cart_box["x"] + cart_box["width"] < robot_box["x"], (cart_box, robot_box)
+    # The map is drawn anew with each pose: both boxes are taken from one drawing, in one
+    # script run, once the drawing has both.
+    drawn = await inspector.wait_for_function(
+        """() => {
+            const cart = document.querySelector(
+                '#map polygon.camera-object[data-camera="north-hall-2"]');
+            const robot = document.querySelector('#map g.robot[data-label=estimated] rect');
+            if (!cart || !robot) return null;
+            return {cart_right: cart.getBoundingClientRect().right,
+                    robot_left: robot.getBoundingClientRect().left};
+        }"""
+    )
+    boxes = await drawn.json_value()
+    assert boxes["cart_right"] < boxes["robot_left"], boxes
     os.makedirs(SCREENSHOTS, exist_ok=True)
     await inspector.locator("#map").screenshot(path=SCREENSHOTS / "inspector-camera-cart.png")
     await customer.screenshot(path=SCREENSHOTS / "order-status-camera-cart-phone.png")
