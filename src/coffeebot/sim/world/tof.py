@@ -325,6 +325,19 @@ class Layers(NamedTuple):
     """(S, A, E, L) visible share x reflectance x cos(incidence) / path^2 (m)."""
 
 
+class _Poles(NamedTuple):
+    """The poles some column of some cone covers, in those columns only."""
+
+    columns: tuple[np.ndarray, np.ndarray]
+    """(sensor, azimuth) index arrays of the N columns."""
+    t: np.ndarray
+    """(N, 1, K) horizontal distance to each pole."""
+    gain: np.ndarray
+    """(N, E, K) visible share x reflectance x cos(incidence)."""
+    through: np.ndarray
+    """(S, A, E) share of each direction that gets through all of them."""
+
+
 class SensorArray:
     """The robot's sensors as optics: their directions, cast from any robot pose at once."""
 
@@ -365,24 +378,31 @@ class SensorArray:
         azimuths = theta + self._yaw[:, None] + self._az[None, :]  # (S, A)
         dx, dy = np.cos(azimuths), np.sin(azimuths)
         bg_t, bg_gain = self._background(surfaces, ox, oy, oz, dx, dy)
-        paths = [bg_t[..., None]]
-        gains = [bg_gain[..., None]]
         poles = self._poles(surfaces, ox, oy, oz, azimuths, bg_t)
-        if poles is not None:
-            cyl_t, cyl_gain, through = poles
-            gains[0] = gains[0] * through[..., None]
-            paths.append(cyl_t)
-            gains.append(cyl_gain)
-        horizontal = np.concatenate(
-            [np.broadcast_to(p, g.shape) for p, g in zip(paths, gains, strict=True)], -1
+        shape = (*bg_t.shape, 1 + (0 if poles is None else poles.gain.shape[-1]))
+        path, strength = np.zeros(shape), np.zeros(shape)
+        through = 1.0 if poles is None else poles.through
+        path[..., 0], strength[..., 0] = self._visible(
+            bg_t, bg_gain * through, self._cos_el[None, None, :]
         )
-        gain = np.concatenate(gains, -1)
-        tilt = self._cos_el[None, None, :, None]
+        if poles is not None:
+            # Elsewhere a pole layer holds nothing: no path, no strength.
+            rows, cols = poles.columns
+            path[rows, cols, :, 1:], strength[rows, cols, :, 1:] = self._visible(
+                np.broadcast_to(poles.t, poles.gain.shape), poles.gain, self._cos_el[None, :, None]
+            )
+        return Layers(path, strength)
+
+    def _visible(
+        self, horizontal: np.ndarray, gain: np.ndarray, tilt: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Path along the ray and strength (reflectance x cos(incidence) / path^2, m) of what
+        lies ``horizontal`` away with ``gain``, 0 where nothing within the optics' reach is."""
         path = np.where(np.isfinite(horizontal), horizontal, 0.0) / tilt
         seen = np.isfinite(horizontal) & (gain > 0.0) & (path <= self.optics.max_path_mm)
         path = np.where(seen, path, 0.0)
         metres = np.where(seen, path, 1000.0) / 1000.0
-        return Layers(path, np.where(seen, gain / metres**2, 0.0))
+        return path, np.where(seen, gain / metres**2, 0.0)
 
     def _background(
         self,
@@ -423,24 +443,27 @@ class SensorArray:
         hit = nearest < best_t
         best_t = np.where(hit, nearest, best_t)
         best_gain = np.where(hit, wall_gain, best_gain)
-        # Faces that stop within the cone (boxes, shelves, door leaves far away): per elevation.
-        partial = np.flatnonzero(np.any(~tall & np.isfinite(t), axis=(0, 1)))
+        # Faces that stop within the cone (boxes, shelves, a robot, door leaves far away): per
+        # elevation, in the columns that cross one only (about one in ten).
+        crossed = ~tall & np.isfinite(t)
+        partial = np.flatnonzero(np.any(crossed, axis=(0, 1)))
         if len(partial):
-            tp = t[..., partial][:, :, None, :]  # (S, A, 1, P)
-            z = oz[..., None] + np.where(np.isfinite(tp), tp, 0.0) * tan_el[..., None]
+            cols = np.nonzero(crossed.any(-1))  # (sensor, azimuth) indices
+            tp = t[..., partial][cols][:, None, :]  # (N, 1, P)
+            z = oz[cols[0]] + np.where(np.isfinite(tp), tp, 0.0) * tan_el[0, ..., None]
             met = (z >= seg[partial, 4]) & (z <= seg[partial, 5]) & np.isfinite(tp)
-            tp = np.where(met, tp, np.inf)
+            tp = np.where(met, tp, np.inf)  # (N, E, P)
             k = tp.argmin(-1)[..., None]
             near = np.take_along_axis(tp, k, -1)[..., 0]
             gain = (
                 np.take_along_axis(
-                    np.broadcast_to(gain_h[..., partial][:, :, None, :], tp.shape), k, -1
+                    np.broadcast_to(gain_h[..., partial][cols][:, None, :], tp.shape), k, -1
                 )[..., 0]
-                * self._cos_el[None, None, :]
+                * self._cos_el[None, :]
             )
-            hit = near < best_t
-            best_t = np.where(hit, near, best_t)
-            best_gain = np.where(hit, gain, best_gain)
+            hit = near < best_t[cols]
+            best_t[cols] = np.where(hit, near, best_t[cols])
+            best_gain[cols] = np.where(hit, gain, best_gain[cols])
         return best_t, best_gain
 
     def _poles(
@@ -451,10 +474,9 @@ class SensorArray:
         oz: np.ndarray,
         azimuths: np.ndarray,
         bg_t: np.ndarray,
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-        """Poles in front of the background: per (S, A, E, pole) horizontal distance and
-        visible share x reflectance x cos(incidence), nearest pole first, and the share of
-        each direction that gets through all of them (S, A, E); None when no cone sees one."""
+    ) -> _Poles | None:
+        """Poles in front of the background, nearest first, in the columns one covers (None
+        when no cone sees one)."""
         cyl = surfaces.cylinders
         if not len(cyl):
             return None
@@ -486,15 +508,20 @@ class SensorArray:
         depth = np.sqrt(np.maximum(r * r - side * side, 0.0))
         t = dist[:, None, :] * np.cos(mid) - depth  # (S, A, K)
         cos_h = depth / r
-        t4 = t[:, :, None, :]
-        z = oz[..., None] + t4 * self._tan_el[None, None, :, None]  # (S, A, E, K)
-        cover4 = np.where(
-            (z >= cyl[:, 3]) & (z <= cyl[:, 4]) & (t4 < bg_t[..., None]) & (t4 > 0),
-            cover[:, :, None, :],
+        # Per elevation, in the columns some pole covers only (one in fifteen or so); the
+        # others see every pole with no gain and let all of their light through.
+        rows, azs = np.nonzero(cover.any(-1))  # (sensor, azimuth) indices
+        cols = (rows, azs)
+        tc = t[cols][:, None, :]  # (N, 1, K)
+        z = oz[cols[0]] + tc * self._tan_el[None, :, None]  # (N, E, K)
+        cover3 = np.where(
+            (z >= cyl[:, 3]) & (z <= cyl[:, 4]) & (tc < bg_t[cols][..., None]) & (tc > 0),
+            cover[cols][:, None, :],
             0.0,
         )
-        through = np.cumprod(1.0 - cover4, axis=-1)
+        through = np.cumprod(1.0 - cover3, axis=-1)
         before = np.concatenate([np.ones_like(through[..., :1]), through[..., :-1]], -1)
-        gain = cover4 * before * (reflect * cos_h)[:, :, None, :]
-        gain = gain * self._cos_el[None, None, :, None]
-        return t4, gain, through[..., -1]
+        gain = cover3 * before * (reflect * cos_h)[cols][:, None, :]
+        through_all = np.ones(bg_t.shape)
+        through_all[cols] = through[..., -1]
+        return _Poles(cols, tc, gain * self._cos_el[None, :, None], through_all)
