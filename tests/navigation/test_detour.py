@@ -333,12 +333,16 @@ def test_waiting_beside_the_wall_it_does_not_turn_towards_a_lane_across() -> Non
         FLOOR, 1.0, CONFIG.motion.passing_wall_distance_mm, CONFIG.geometry.width_mm
     )
 
-    def waiting(lane_mm: float) -> list[Command]:
+    def waiting(lane_mm: float, turning_dps: float = 0.0) -> list[float]:
         module = module_with_box(3.0, 800, frozenset({2, 3, 4, 5}), lane_mm)
+        module.controller.yaw_rate = turning_dps
         commands = stop_in_lane(module.controller, START_S + 3000.0, None, lane_mm, -LANE)
         assert module.controller.detour.phase is Phase.CONFIRMING
         assert all(c.speed_mm_s == 0.0 for c in commands)
-        return commands
+        return [c.yaw_rate_dps for c in commands]
 
-    assert all(c.yaw_rate_dps == 0.0 for c in waiting(beside_wall))
-    assert any(c.yaw_rate_dps > 0.0 for c in waiting(LANE)), "room to turn: it turns"
+    assert all(rate == 0.0 for rate in waiting(beside_wall))
+    assert any(rate > 0.0 for rate in waiting(LANE)), "room to turn: it turns"
+    # A turn begun while it still rolled is not carried on once it stands.
+    rates = waiting(beside_wall, turning_dps=10.0)
+    assert rates == sorted(rates, reverse=True) and rates[-1] == 0.0, rates

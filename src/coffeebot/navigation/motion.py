@@ -348,13 +348,14 @@ class MotionController:
         if (
             target <= 0.0
             and self.speed < cfg.creep_speed_mm_s
-            and self._no_room_to_begin_turn(pose, heading, now)
+            and not self._turn_is_free(pose, heading, now, self._spin_room)
         ):
             # Standing to wait (for something ahead), it turns towards the lane's heading
-            # only as a turn on the spot is begun: if the sweep has room. A robot holding
-            # the car, waiting beside the wall to cross to it, turned 14 degrees towards the
-            # lane across and swung its rear about the axle to 49 mm of the wall, where its
-            # side sensor held it 71 s.
+            # only as far as a turn on the spot has room, checked every period: a turn begun
+            # while it still rolled goes on once it stands. A robot holding the car, waiting
+            # beside the wall to cross to it, turned 14 degrees towards the lane across and
+            # swung its rear about the axle to 49 mm of the wall, where its side sensor held
+            # it 71 s.
             rate = 0.0
         return self._command(target, rate, dt, status, limit)
 
