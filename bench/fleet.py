@@ -543,6 +543,8 @@ def main(argv: list[str] | None = None) -> int:
         cases.append(Case(3, KILL_PER_H, "joint", args.minutes / 2, args.seed, True, args.cameras))
     # The longest first, so two workers end together.
     order = sorted(range(len(cases)), key=lambda i: -cases[i].robots * cases[i].minutes)
+    if args.logs is not None:
+        args.logs.mkdir(parents=True, exist_ok=True)
     started = time.monotonic()
     with ProcessPoolExecutor(args.workers) as pool:
         done = dict(
