@@ -240,8 +240,7 @@ class LocalCostmap:
         # Every cone is cleared and then every arc marked, each in one go: a cell's state
         # after the update is the same in any order (a cell both cleared and marked now is
         # not occupied), and numpy's cost is in the calls, not the points.
-        clear_x: list[np.ndarray] = []
-        clear_y: list[np.ndarray] = []
+        cones: list[tuple[float, float, float, float]] = []  # each cleared: x, y, look, free
         mark_x: list[np.ndarray] = []
         mark_y: list[np.ndarray] = []
         mark_pole: list[np.ndarray] = []
@@ -264,10 +263,7 @@ class LocalCostmap:
             sx, sy, look = sensor_origin(x_mm, y_mm, heading_deg, sensor)
             free = MAX_MARK_MM if distance is None else min(distance, MAX_MARK_MM) - self.res
             if free > 0:
-                steps = self._steps[: math.ceil(free / self._step)]
-                clear = math.radians(look) + clear_spread
-                clear_x.append(sx + np.outer(np.cos(clear), steps).ravel())
-                clear_y.append(sy + np.outer(np.sin(clear), steps).ravel())
+                cones.append((sx, sy, look, free))
             if distance is None or distance > MAX_MARK_MM or sensor.id in explained:
                 continue  # nothing there, too far to mark, or a wall or robot explains it
             angles = math.radians(look) + self._spread
@@ -279,8 +275,8 @@ class LocalCostmap:
             mark_x.append(xs)
             mark_y.append(ys)
             mark_pole.append(np.zeros(len(xs), dtype=bool))
-        if clear_x:
-            i, j = self._cells(np.concatenate(clear_x), np.concatenate(clear_y))
+        if cones:
+            i, j = self._cells(*self._cleared(cones, clear_spread))
             self.clear_t[i, j] = now
         if mark_x:
             i, j, pole = self._cells(
@@ -290,6 +286,22 @@ class LocalCostmap:
             self.since_t[i[fresh], j[fresh]] = now
             self.pole_t[i[pole], j[pole]] = now
             self.hit_t[i, j] = now
+
+    def _cleared(
+        self, cones: list[tuple[float, float, float, float]], spread: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The points (x, y) each cone (origin, look in degrees, free distance) clears, along
+        its rays ``spread`` (radians off its look) out to its free distance: every cone's in
+        one go, cone by cone, ray by ray."""
+        x, y, look, free = (np.array(values) for values in zip(*cones, strict=True))
+        counts = np.ceil(free / self._step)
+        steps = self._steps[: int(counts.max())]
+        angles = np.radians(look)[:, None] + spread  # (cones, rays)
+        within = np.arange(len(steps)) < counts[:, None, None]  # (cones, 1, steps)
+        within = np.broadcast_to(within, (len(cones), len(spread), len(steps)))
+        xs = x[:, None, None] + np.cos(angles)[:, :, None] * steps
+        ys = y[:, None, None] + np.sin(angles)[:, :, None] * steps
+        return xs[within], ys[within]
 
     def _explaining_rays(
         self, readings: dict[int, RangeReading], x_mm: float, y_mm: float, heading_deg: float
