@@ -91,18 +91,16 @@ def explained_points(
     distances = np.array([distance for _, distance in readings], dtype=float)
     ranges = wall_ranges(floor, np.array(origins), np.array(angles), distances + tolerance_mm)
     near = np.abs(ranges - distances[:, None]) <= tolerance_mm
-    found = {}
-    for (sensor, _), row, rays, spread in zip(readings, ranges, near, offsets, strict=True):
-        if rays.any():
-            bearing = math.radians(sensor.yaw_deg) + spread[rays]
-            found[sensor.id] = np.stack(
-                [
-                    sensor.x_mm + row[rays] * np.cos(bearing),
-                    sensor.y_mm + row[rays] * np.sin(bearing),
-                ],
-                axis=1,
-            )
-    return found
+    # Every sensor's rays placed in the robot frame at once, then each one's near rays.
+    mounts = np.array([(s.x_mm, s.y_mm, s.yaw_deg) for s, _ in readings])
+    bearing = np.radians(mounts[:, 2:]) + np.array(offsets)
+    hit = np.where(near, ranges, 0.0)
+    points = np.stack(
+        [mounts[:, :1] + hit * np.cos(bearing), mounts[:, 1:2] + hit * np.sin(bearing)], axis=-1
+    )
+    return {
+        sensor.id: points[k][near[k]] for k, (sensor, _) in enumerate(readings) if near[k].any()
+    }
 
 
 Explainer = Callable[[Sequence[tuple[TofSensorConfig, float]]], dict[int, np.ndarray]]
