@@ -169,7 +169,7 @@ def measure(scene: Scene, optics: ConeOptics, rangings: int, seed: int) -> dict[
     if scene.ambient_mcps is not None:
         optics = optics.model_copy(update={"ambient_mcps": scene.ambient_mcps})
     array = SensorArray([scene.mount], optics)
-    returns = array.returns(array.layers(0.0, 0.0, 0.0, scene.surfaces), scene.roi)[0]
+    returns = array.returns(array.layers(0.0, 0.0, 0.0, scene.surfaces), 0, scene.roi)
     setup = RangingSetup(timing_budget_ms=scene.budget_ms)
     rng = np.random.default_rng(seed)
     readings = [range_once(returns, setup, RangingNoise(), rng) for _ in range(rangings)]

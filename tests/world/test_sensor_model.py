@@ -51,7 +51,7 @@ def pole(
 
 def returns(surfaces: Surfaces, mount: SensorMount = LAB_HEIGHT, roi=FULL_ROI) -> Returns:
     array = SensorArray([mount], OPTICS)
-    return array.returns(array.layers(0.0, 0.0, 0.0, surfaces), roi)[0]
+    return array.returns(array.layers(0.0, 0.0, 0.0, surfaces), 0, roi)
 
 
 def exact(surfaces: Surfaces, mount: SensorMount = LAB_HEIGHT, setup=DEFAULT_SETUP):

@@ -356,31 +356,18 @@ class SensorArray:
         self._mz = np.array([m.height_mm for m in self.mounts])
         self._yaw = np.radians([m.yaw_deg for m in self.mounts])
 
-    def returns(self, layers: Layers, roi: SpadRoi = FULL_ROI) -> tuple[Returns, ...]:
-        """What each sensor collects through ``roi``, every sensor's at once (a scan asks
-        them all, through the same ROI)."""
+    def returns(self, layers: Layers, sensor: int, roi: SpadRoi = FULL_ROI) -> Returns:
+        """What sensor ``sensor`` (index into the mounts) collects through ``roi``."""
         weights = roi_weights(self.optics, roi)
         ambient = self.optics.ambient_mcps * float(weights.sum())
-        signal = weights[None, ..., None] * layers.strength  # (S, A, E, L)
-        each = (1, 2, 3)
-        total = signal.sum(axis=each)
-        lit = total > 0.0
-        with np.errstate(divide="ignore", invalid="ignore"):
-            mean = (signal * layers.path_mm).sum(axis=each) / total
-            deviation = layers.path_mm - np.where(lit, mean, 0.0)[:, None, None, None]
-            variance = (signal * deviation**2).sum(axis=each) / total
-        return tuple(
-            Returns(
-                self.optics.signal_mcps * float(t),
-                ambient,
-                float(m),
-                math.sqrt(max(0.0, float(v))),
-                roi.spad_count,
-            )
-            if on
-            else Returns(0.0, ambient, math.nan, 0.0, roi.spad_count)
-            for t, m, v, on in zip(total, mean, variance, lit, strict=True)
-        )
+        signal = weights[..., None] * layers.strength[sensor]
+        total = float(signal.sum())
+        if total <= 0.0:
+            return Returns(0.0, ambient, math.nan, 0.0, roi.spad_count)
+        path = layers.path_mm[sensor]
+        mean = float((signal * path).sum() / total)
+        spread = math.sqrt(max(0.0, float((signal * (path - mean) ** 2).sum() / total)))
+        return Returns(self.optics.signal_mcps * total, ambient, mean, spread, roi.spad_count)
 
     def layers(self, x: float, y: float, theta: float, surfaces: Surfaces) -> Layers:
         """Every sensor's returns from a robot pose (mm, theta in rad) among ``surfaces``."""

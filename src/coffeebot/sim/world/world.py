@@ -286,7 +286,7 @@ class WorldRobot:
         self.collisions: list[Collision] = []
         self._touching: set[str] = set()
         self._layers: Layers | None = None
-        self._returns: dict[SpadRoi, tuple[Returns, ...]] = {}
+        self._returns: dict[tuple[int, SpadRoi], Returns] = {}
 
     # --- state -----------------------------------------------------------------------------
 
@@ -442,13 +442,14 @@ class WorldRobot:
     def tof_returns(self, sensor: int, roi: SpadRoi = FULL_ROI) -> Returns:
         """What sensor ``sensor`` (index into the robot's mounts) collects now through
         ``roi``, noiseless; every sensor's optics are cast once until the world moves."""
-        if roi not in self._returns:
+        key = (sensor, roi)
+        if key not in self._returns:
             if self._layers is None:
                 s = self.body.state
                 near = self.world.near(self.floor_level, s.x, s.y, self._cast_radius, self)
                 self._layers = self.sensors.layers(s.x, s.y, s.theta, near)
-            self._returns[roi] = self.sensors.returns(self._layers, roi)
-        return self._returns[roi][sensor]
+            self._returns[key] = self.sensors.returns(self._layers, sensor, roi)
+        return self._returns[key]
 
     def tof_reading(
         self, sensor: int, setup: RangingSetup = DEFAULT_SETUP, roi: SpadRoi = FULL_ROI
