@@ -449,7 +449,7 @@ class SensorArray:
         partial = np.flatnonzero(np.any(crossed, axis=(0, 1)))
         if len(partial):
             cols = np.nonzero(crossed.any(-1))  # (sensor, azimuth) indices
-            tp = t[..., partial][cols][:, None, :]  # (N, 1, P)
+            tp = t[cols][:, None, partial]  # (N, 1, P)
             z = oz[cols[0]] + np.where(np.isfinite(tp), tp, 0.0) * tan_el[0, ..., None]
             met = (z >= seg[partial, 4]) & (z <= seg[partial, 5]) & np.isfinite(tp)
             tp = np.where(met, tp, np.inf)  # (N, E, P)
@@ -457,7 +457,7 @@ class SensorArray:
             near = np.take_along_axis(tp, k, -1)[..., 0]
             gain = (
                 np.take_along_axis(
-                    np.broadcast_to(gain_h[..., partial][cols][:, None, :], tp.shape), k, -1
+                    np.broadcast_to(gain_h[cols][:, None, partial], tp.shape), k, -1
                 )[..., 0]
                 * self._cos_el[None, :]
             )
