@@ -737,6 +737,15 @@ class MotionConfig(Section):
         le=SPEED_MM_S,
         description="speed over the last approach_mm before a target door",
     )
+    room_speed_mm_s: float = Field(
+        300.0,
+        gt=0,
+        le=SPEED_MM_S,
+        description="speed of a drive to a point through a doorway: into and out of a room "
+        "or the elevator's car (at 150 mm/s those drives took a fleet's shared places, the "
+        "car and the loading spot, a third of their time); the profile still brakes to stop "
+        "on the point",
+    )
     approach_mm: float = Field(
         1200.0,
         ge=0,

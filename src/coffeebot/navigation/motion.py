@@ -261,7 +261,7 @@ class MotionController:
         if abs(error) > AIM_BEFORE_DRIVING_DEG and self.speed < self.cfg.creep_speed_mm_s:
             return self._spin(ins, pose, self._line, now, dt, limit, remaining, ins.detail)
         status = self._status(ins.id, MotionState.MOVING, now, remaining, ins.detail)
-        target = self.profile.target(remaining, ins.speed_mm_s or self.cfg.approach_speed_mm_s)
+        target = self.profile.target(remaining, ins.speed_mm_s or self.cfg.room_speed_mm_s)
         heading = lane_heading_deg(self._line, left_of_line, self.cfg)
         rate = turn_rate_dps(pose.heading_deg, heading, self.cfg)
         return self._command(target, rate, dt, status, limit)
