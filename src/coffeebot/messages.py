@@ -490,7 +490,7 @@ class OrderUpdate(Message):
 
 # --- fleet ------------------------------------------------------------------------------
 
-SharedPlace = Literal["elevator", "loading_spot", "holding_point", "crossing"]
+SharedPlace = Literal["elevator", "loading_spot", "holding_point", "crossing", "landing"]
 
 
 class LeaseNeed(Message):
@@ -509,6 +509,7 @@ class LeaseState(Message):
     loading_spot: bool = False
     holding_point: bool = False
     crossing: bool = False
+    landing: bool = False
     detail: str = ""
 
     def holds(self, place: SharedPlace) -> bool:

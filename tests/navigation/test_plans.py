@@ -179,7 +179,9 @@ def test_a_fleet_robot_out_of_the_car_waits_for_the_loading_spot_at_the_holding_
         (out,) = [m.instruction for m in ride.exit if isinstance(m, Move)]
         assert out.x_mm is not None and out.y_mm is not None
         assert floor.to_hallway(out.x_mm, out.y_mm) == (elevator.at_mm, 0.0)
-        hold, back, crossing_back, turn, ask = steps[at + 1 : at + 6]
+        # The car given back once out of it; the crossing in front of it at the point.
+        assert ride.exit[0] == Lease("crossing", True)
+        back, hold, crossing_back, turn, ask = steps[at + 1 : at + 6]
         assert isinstance(hold, Move) and hold.instruction.action == "drive_to"
         assert (back, ask) == (Lease("elevator", False), Lease("loading_spot", True))
         assert crossing_back == Lease("crossing", False)
@@ -330,11 +332,13 @@ def waiting_lane(floor: Floor) -> float:
 
 
 def test_a_fleet_robot_waits_for_the_elevator_in_the_tea_room_across_from_it() -> None:
-    """In front of the car's door it would stand in the way of a robot coming out of it."""
+    """In front of the car's door it would stand in the way of a robot coming out of it:
+    it leaves the room holding the car and the crossing in front of it (the robot out of
+    the car before it gave the car back at its door, and holds the crossing until clear)."""
     base = FLEET_ROBOT.base
     steps = FLEET_ROBOT.route(2, base.door.at_mm, FLEET_ROBOT.door_place("305"), base.door).steps
-    assert steps[0] == Lease("elevator", True)
-    assert isinstance(steps[1], Move) and steps[1].instruction.detail == "out of Tea room"
+    assert steps[:2] == [Lease("elevator", True), Lease("crossing", True)]
+    assert isinstance(steps[2], Move) and steps[2].instruction.detail == "out of Tea room"
     assert steps.count(Lease("elevator", True)) == 1
 
 
@@ -382,18 +386,26 @@ def test_a_fleet_robot_holds_short_of_the_elevator_on_its_side_near_the_wall() -
     # taken before it, so the robot never waits for the spot in front of the car's door.
     assert steps[ask - 1] == Lease("holding_point", True)
     ride = next(i for i, s in enumerate(steps) if isinstance(s, ElevatorRide))
-    assert ask < ride and steps[ride + 2] == Lease("elevator", False)
+    assert ask < ride and steps[ride + 1] == Lease("elevator", False)
 
 
-def test_a_fleet_robot_gives_the_elevator_back_once_clear_of_its_door() -> None:
+def test_a_fleet_robot_gives_the_car_back_once_out_and_its_landing_once_clear() -> None:
+    """The car is given back as soon as the robot is out of it (a robot on the other floor
+    has it at once), the landing in front of its door once the robot is as far from it as
+    the next robot on that floor waits (that one sets off only once the way is clear)."""
     base = FLEET_ROBOT.base
     steps = FLEET_ROBOT.route(2, base.door.at_mm, FLEET_ROBOT.door_place("305"), base.door).steps
-    ride = next(i for i, s in enumerate(steps) if isinstance(s, ElevatorRide))
-    away, back = steps[ride + 1 : ride + 3]
+    ride_at = next(i for i, s in enumerate(steps) if isinstance(s, ElevatorRide))
+    ride = steps[ride_at]
+    assert isinstance(ride, ElevatorRide)
+    assert ride.exit[0] == Lease("landing", True), "taken in the car, before it drives out"
+    back, turn, away, landing_back = steps[ride_at + 1 : ride_at + 5]
     elevator = PLAN.floor(3).elevator
     assert elevator is not None
-    assert isinstance(away, Move) and away.instruction.target_s_mm == elevator.at_mm - HOLD_MM
     assert back == Lease("elevator", False)
+    assert isinstance(turn, Move) and turn.instruction.detail == "into the lane"
+    assert isinstance(away, Move) and away.instruction.target_s_mm == elevator.at_mm - HOLD_MM
+    assert landing_back == Lease("landing", False)
 
 
 def test_a_single_robot_holds_no_places() -> None:
@@ -444,22 +456,27 @@ def test_a_fleet_robot_changes_lanes_for_the_elevator_only_with_way_enough() -> 
         assert (last.instruction.action == "turn") is squares
 
 
+INNERMOST = {"crossing", "landing"}
+
+
 def _crossing_holds(route_steps: list, held: set[str]) -> list[tuple[Move, set[str]]]:
     """Each move of a route begun holding ``held``, with the places held while it is made
-    (rides' moves included), checking the crossing rule on the way: the crossing is asked
-    for last (never another place while it is held) and given back by the route's end."""
+    (rides' moves included), checking the rule of the spaces in front of the car's door
+    (the crossing, the landing) on the way: each is asked for last (never another place
+    while one is held) and given back by the route's end."""
     made: list[tuple[Move, set[str]]] = []
     flat: list = []
     for step in route_steps:
         flat += [*step.enter, *step.exit] if isinstance(step, ElevatorRide) else [step]
     for step in flat:
         if isinstance(step, Lease):
-            if step.want and step.place != "crossing":
-                assert "crossing" not in held, f"asks for the {step.place} holding the crossing"
+            if step.want and step.place not in INNERMOST:
+                inner = held & INNERMOST
+                assert not inner, f"asks for the {step.place} holding the {inner}"
             (held.add if step.want else held.discard)(step.place)
         else:
             made.append((step, set(held)))
-    assert "crossing" not in held, "the crossing still held at the route's end"
+    assert not held & INNERMOST, f"the {held & INNERMOST} still held at the route's end"
     return made
 
 
@@ -475,10 +492,10 @@ def test_a_fleet_robot_turns_along_the_hallway_before_it_sets_off_from_a_door() 
                 loc.floor.level, loc.door.at_mm, FLEET_ROBOT.door_place(goal), loc.door
             )
             made = [s.instruction for s in route.steps if isinstance(s, Move)]
-            if made[0].target_s_mm is None and made[1].action == "turn":
-                out, turn = made[:2]
-            else:
+            first = [s for s in route.steps if isinstance(s, (Move, ElevatorRide))][:2]
+            if isinstance(first[1], ElevatorRide):
                 continue  # straight across into the car
+            out, turn = made[:2]
             lane = next(m for m in made if m.action == "follow_lane")
             assert out.detail == f"out of {start}" and turn.detail == "along the hallway"
             travel = 0.0 if lane.target_s_mm > loc.door.at_mm else 180.0
@@ -493,8 +510,8 @@ def test_a_fleet_robot_turns_along_the_hallway_before_it_sets_off_from_a_door() 
 
 def test_a_fleet_robot_holds_the_crossing_for_every_way_through_the_doors() -> None:
     """Where the car faces the tea room (floor 2), every way into or out of either door is
-    made holding the crossing, or holding both the car and the loading spot (a robot leaving
-    the room for that car: nobody else may be at either door then). Two robots in it at
+    made holding the crossing (holding the car is not enough: it is given back once the
+    robot is out of it, with the robot still in front of its door). Two robots in it at
     once stood in each other's sweep for good in the fleet benchmark: one out of the car
     turning towards the holding point, one coming out of the tea room. The crossing is asked
     for after every other place and given back before any other is asked for, so no two
@@ -519,14 +536,22 @@ def test_a_fleet_robot_holds_the_crossing_for_every_way_through_the_doors() -> N
             if other != room:
                 place = FLEET_ROBOT.door_place(other)
                 routes.append((FLEET_ROBOT.route(*start, place, loc.door), set()))
+    # On floor 3 the landing in front of the car's door: the car is given back once a robot
+    # is out of it, so only the landing keeps one driving up to it from one coming out.
+    landing_ways = {"out of the elevator on floor 3", "to the elevator on Floor 3", "into the car"}
     seen: set[str] = set()
+    landing_seen: set[str] = set()
     for route, start_held in routes:
         for move, held in _crossing_holds(route.steps, start_held):
             ins = move.instruction
             if ins.floor == 2 and ins.detail in ways:
                 seen.add(ins.detail)
-                assert "crossing" in held or {"elevator", "loading_spot"} <= held, ins.detail
+                assert "crossing" in held, ins.detail
+            if ins.floor == 3 and ins.detail in landing_ways:
+                landing_seen.add(ins.detail)
+                assert "landing" in held, ins.detail
     assert seen == ways
+    assert landing_seen == landing_ways
     # A single robot has the places alone: no leases at all.
     assert not any(isinstance(s, Lease) for s in PLANNER.route(3, 15000.0, PLANNER.base).steps)
 

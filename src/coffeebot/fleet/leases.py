@@ -1,6 +1,7 @@
 """Shared places a robot must hold alone: the elevator car, the tea room's loading spot, the
-holding point where a robot out of the car waits for that spot, and the crossing in front of
-the car's and the tea room's doors where they face each other.
+holding point where a robot out of the car waits for that spot, the crossing in front of the
+car's and the tea room's doors where they face each other, and the landing in front of the
+car's door on the other floors.
 
 The dispatcher keeps one :class:`LeaseBook`. A robot asks for a place before it goes in and
 gives it back when it is out; while inside it asks again now and then, which renews the
@@ -17,7 +18,7 @@ from dataclasses import dataclass, field
 
 from coffeebot.fleet.protocol import Place
 
-PLACES: tuple[Place, ...] = ("elevator", "loading_spot", "holding_point", "crossing")
+PLACES: tuple[Place, ...] = ("elevator", "loading_spot", "holding_point", "crossing", "landing")
 
 
 @dataclass

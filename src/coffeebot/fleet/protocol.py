@@ -156,7 +156,7 @@ class Ack(FleetMessage):
     reason: str = Field("", max_length=500)
 
 
-Place = Literal["elevator", "loading_spot", "holding_point", "crossing"]
+Place = Literal["elevator", "loading_spot", "holding_point", "crossing", "landing"]
 
 
 class LeaseRequest(FleetMessage):

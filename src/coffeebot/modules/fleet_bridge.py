@@ -525,6 +525,7 @@ class FleetBridge(Module):
             loading_spot="loading_spot" in self._granted,
             holding_point="holding_point" in self._granted,
             crossing="crossing" in self._granted,
+            landing="landing" in self._granted,
             detail=detail,
         )
         previous = ctx.board.latest(LEASE_STATE)

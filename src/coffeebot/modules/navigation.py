@@ -434,7 +434,7 @@ class NavigationModule(Module):
         self._progress(ctx, f"on floor {there}")
         await self._drive(ctx, ride.exit)
         ctx.board.publish(ELEVATOR_REQUEST, ElevatorRequest(action="release", floor=there))
-        # A fleet's route gives the elevator back once the robot is clear of its door.
+        # A fleet's route gives the elevator back now: the robot is out and the car released.
 
     # --- deliveries ------------------------------------------------------------------------
 

@@ -24,7 +24,11 @@ spot to when it is out in the hallway. The elevator is the other shared place. A
 for it where a robot coming out of the car is not in its way: on its own side, as near the
 wall as a passing robot, ``max(pull_over_mm, hold_short_mm)`` short of the elevator, or in
 the room it leaves when that room is nearer than that; and it holds the car until it is
-that far from it on the other floor, so the next robot sets off only once the way is clear.
+until it is out of the car on the other floor. The space in front of the car's door is held
+apart from the car, by the *crossing* on the floor where the car faces the base room and the
+*landing* on the others: a robot holds it driving up to the car and into it, and out of the
+car until it is as far from it as the next robot waits, so the next robot on that floor sets
+off only once the way is clear, while one on another floor has the car at once.
 A robot riding to a base room near the car on the other floor takes the holding point
 before the elevator, a place out of the car beside the doorways towards the hallway's nearer
 end, and waits there for the loading spot: in front of the car's door it would stand where
@@ -66,9 +70,10 @@ class Lease:
 
 @dataclass(frozen=True)
 class ElevatorRide:
-    """Ride from ``from_floor`` to ``to_floor``: moves for before the call, in, and out (a
-    fleet's robot gives the crossing and the loading spot back once in the car and takes the
-    crossing before it comes out, where the car faces the base room)."""
+    """Ride from ``from_floor`` to ``to_floor``: moves for before the call, in, and out of the
+    car, which is released to the building after them (a fleet's robot gives the space in
+    front of the car's door and the loading spot back once in the car, and takes the space
+    on the other floor before it comes out)."""
 
     from_floor: int
     to_floor: int
@@ -204,7 +209,7 @@ class RoutePlanner:
                 floor=floor.level,
                 x_mm=point[0],
                 y_mm=point[1],
-                speed_mm_s=self.motion.approach_speed_mm_s,
+                speed_mm_s=self.motion.room_speed_mm_s,
                 avoid=False,
                 detail=detail,
             )
@@ -237,6 +242,7 @@ class RoutePlanner:
         asked = rides and leave is not None and self._near_elevator(floor, leave.at_mm)
         if asked:
             steps.extend(self._elevator_leases(goal))
+            steps.extend(self._in_front_of_car(floor, True))
         # A fleet's robot leaves the base room from the loading spot (:meth:`loading`),
         # holding it until it is out in the hallway; one leaving it for the car nearby (across
         # the hallway in the CS building) until it is in the car: waiting in front of the
@@ -249,7 +255,7 @@ class RoutePlanner:
         )
         to_car_near = asked and from_base
         # Out of the base room across from the car, it holds the crossing until it is clear
-        # of both doorways (a robot leaving for that car holds the car, which is enough).
+        # of both doorways (one leaving for that car took it with the car).
         crossing_out = from_base and not to_car_near and self._crossing(floor)
         if leave is not None:
             s = leave.at_mm
@@ -281,13 +287,14 @@ class RoutePlanner:
                 steps += clear
         if rides:
             steps.extend(self._to_elevator(floor, s, goal, asked))
-            in_the_car = [Lease("crossing", False)] if _holds(steps, "crossing") else []
+            in_the_car = [Lease(p, False) for p in ("crossing", "landing") if _holds(steps, p)]
             if to_car_near:
                 in_the_car.append(spot_given_back)
             steps.append(self._ride(floor_level, goal.floor, goal, in_the_car))
             floor = self.plan.floor(goal.floor)
             assert floor.elevator is not None
             s = floor.elevator.at_mm
+            steps += self._out_of_car(floor, goal)
             if self.parking is not None:
                 clear, s = self._clear_of_elevator(floor, s, goal)
                 steps += clear
@@ -295,8 +302,8 @@ class RoutePlanner:
         # turns in: the next may ride down to it once it is in the room.
         held = Lease("holding_point", True) in steps
         steps.extend(self._along(floor, s, goal, park, held=held))
-        if _holds(steps, "crossing"):  # its goal lies within the crossing
-            steps.append(Lease("crossing", False))
+        # Its goal lies within the space in front of the car.
+        steps += [Lease(p, False) for p in ("crossing", "landing") if _holds(steps, p)]
         return Route(steps)
 
     def where(self, floor_level: int, x_mm: float, y_mm: float) -> tuple[float, Door | None]:
@@ -342,6 +349,16 @@ class RoutePlanner:
             and floor.elevator is not None
             and abs(base.door.at_mm - floor.elevator.at_mm) <= self._elevator_hold_mm
         )
+
+    def _in_front_of_car(self, floor: Floor, want: bool) -> list[Lease]:
+        """A fleet's robot's lease on the space in front of the car's door on ``floor``: the
+        crossing where the base room faces the car, the landing on the other floors (one
+        lease for them all). Without it, a robot driving out of the car would meet one
+        driving up to it: the car is given back once the robot is out of it, so holding the
+        car no longer keeps the way in front of its door clear."""
+        if self.parking is None or floor.elevator is None:
+            return []
+        return [Lease("crossing" if self._crossing(floor) else "landing", want)]
 
     def _crossing_clear_mm(self, floor: Floor) -> float:
         """How far along the hallway from the car's door a robot's body is clear of the
@@ -406,13 +423,11 @@ class RoutePlanner:
         return [away, Lease("crossing", False)], clear_at
 
     def _clear_of_elevator(self, floor: Floor, s: float, goal: Place) -> tuple[list[Step], float]:
-        """Out of the car, a fleet's robot gives the elevator back once it is as far from
-        it as the next robot waits (at once if its goal is nearer; at the holding point if
-        it goes on to the loading spot nearby, where it then waits for it); and where it
-        is then."""
-        given_back: list[Step] = [Lease("elevator", False)]
-        if self._crossing(floor):
-            given_back.append(Lease("crossing", False))
+        """Out of the car, a fleet's robot gives the space in front of its door back once it
+        is as far from it as the next robot waits (at once if its goal is nearer; at the
+        holding point if it goes on to the loading spot nearby, where it then waits for
+        it); and where it is then."""
+        given_back: list[Step] = [*self._in_front_of_car(floor, False)]
         holding = self._holding_point(goal)
         if holding is not None:
             # On the hallway's axis, where the half turn back has room on both sides (in a
@@ -437,7 +452,9 @@ class RoutePlanner:
         it ``asked`` for them already."""
         elevator = floor.elevator
         assert elevator is not None  # the floor plan loader guarantees it
-        leases = [] if asked else self._elevator_leases(goal)
+        leases = (
+            [] if asked else [*self._elevator_leases(goal), *self._in_front_of_car(floor, True)]
+        )
         if abs(elevator.at_mm - s) <= self.motion.stop_tolerance_mm:
             return leases  # across the hallway from it already (out of the tea room)
         direction = 1.0 if elevator.at_mm >= s else -1.0
@@ -458,8 +475,6 @@ class RoutePlanner:
                 "short of the elevator",
             )
             steps = [*holds, *leases]
-            if self._crossing(floor):
-                steps.append(Lease("crossing", True))
         stop_at = self.turn_point_mm(elevator, direction)
         steps.append(self._lane(floor, stop_at, lane, detail=f"to the elevator on {floor.name}"))
         return steps
@@ -529,16 +544,14 @@ class RoutePlanner:
             # has room there. In the lane in front of the room's door, 250 mm from its jamb,
             # the turn was stopped by the jamb and a robot standing in the doorway for good.
             out_to = 0.0
-        out: list[Move | Lease] = [Lease("crossing", True)] if self._crossing(there) else []
-        out += [
+        out: list[Move | Lease] = [
+            *self._in_front_of_car(there, True),
             self._drive_to(
                 there,
                 there.from_hallway(door_there.at_mm, out_to),
                 f"out of the elevator on floor {to_level}",
-            )
+            ),
         ]
-        if not straight_across:
-            out.append(self._turn(there, self.travel_deg(there, direction), "into the lane"))
         return ElevatorRide(
             from_floor=from_level,
             to_floor=to_level,
@@ -550,6 +563,18 @@ class RoutePlanner:
             ],
             exit=out,
         )
+
+    def _out_of_car(self, there: Floor, goal: Place) -> list[Step]:
+        """Out of the car (and the car released): a fleet's robot gives the elevator back,
+        so a robot on another floor has it at once; then the robot turns into its lane
+        unless its goal's door is straight across."""
+        door_there = there.elevator
+        assert door_there is not None
+        steps: list[Step] = [Lease("elevator", False)] if self.parking is not None else []
+        if not (goal.inside and self._across_from(goal.door, door_there.at_mm)):
+            direction = 1.0 if goal.door.at_mm >= door_there.at_mm else -1.0
+            steps.append(self._turn(there, self.travel_deg(there, direction), "into the lane"))
+        return steps
 
     def _across_from(self, door: Door, s: float) -> bool:
         """Whether a robot at ``s`` stands across the hallway from ``door``, nearer to its
