@@ -352,12 +352,12 @@ def test_a_fleet_robot_from_the_tea_room_holds_the_spot_until_it_is_in_the_car()
     steps = FLEET_ROBOT.route(2, base.door.at_mm, FLEET_ROBOT.door_place("305"), base.door).steps
     (ride,) = [s for s in steps if isinstance(s, ElevatorRide)]
     assert Lease("loading_spot", False) not in steps
-    turned_in_car = next(
+    in_car = next(
         i
         for i, s in enumerate(ride.enter)
-        if isinstance(s, Move) and s.instruction.detail == "turning round in the car"
+        if isinstance(s, Move) and s.instruction.detail == "into the car"
     )
-    assert Lease("loading_spot", False) in ride.enter[turned_in_car + 1 :]
+    assert Lease("loading_spot", False) in ride.enter[in_car + 1 :]
     steps = FLEET_ROBOT.route(2, base.door.at_mm, FLEET_ROBOT.door_place("205"), base.door).steps
     out = next(
         i
@@ -367,6 +367,30 @@ def test_a_fleet_robot_from_the_tea_room_holds_the_spot_until_it_is_in_the_car()
     turn, given_back = steps[out + 1 : out + 3]
     assert isinstance(turn, Move) and turn.instruction.detail == "along the hallway"
     assert given_back == Lease("loading_spot", False), "along the floor: given back once out"
+
+
+def test_in_the_car_the_body_and_its_half_turn_stay_past_the_door_line() -> None:
+    """A fleet's robot gives back what it held for the way in (the loading spot, the space
+    in front of the car's door) once it is in the car, before it turns round: the body
+    parked ``car_depth_mm`` past the door line, and every corner's sweep about the axle
+    (``axle_x_mm`` ahead of the centre), stay behind the line, out of everyone's way."""
+    depth = CONFIG.navigation.elevator.car_depth_mm
+    half_length = CONFIG.geometry.length_mm / 2
+    half_width = CONFIG.geometry.width_mm / 2
+    axle = CONFIG.motor.axle_x_mm
+    assert depth - half_length > 0, "the body parked in the car crosses the door line"
+    sweep = math.hypot(half_length + axle, half_width)  # the rear corners, farthest out
+    assert depth + axle - sweep > 0, "the half turn in the car sweeps past the door line"
+    base = FLEET_ROBOT.base
+    steps = FLEET_ROBOT.route(2, base.door.at_mm, FLEET_ROBOT.door_place("305"), base.door).steps
+    (ride,) = [s for s in steps if isinstance(s, ElevatorRide)]
+    details = [s.instruction.detail if isinstance(s, Move) else s for s in ride.enter]
+    assert details == [
+        "into the car",
+        Lease("crossing", False),
+        Lease("loading_spot", False),
+        "turning round in the car",
+    ]
 
 
 def test_a_fleet_robot_holds_short_of_the_elevator_on_its_side_near_the_wall() -> None:

@@ -556,10 +556,12 @@ class RoutePlanner:
             from_floor=from_level,
             to_floor=to_level,
             face_doors=self._turn(here, facing, "facing the elevator doors"),
+            # Parked ``car_depth_mm`` past the door line, the body's sweep about the axle
+            # stays in the car: what it holds for the way in is given back before it turns.
             enter=[
                 self._drive_to(here, here.behind_door(door_here, depth), "into the car"),
-                self._turn(here, facing + 180.0, "turning round in the car"),
                 *given_back,
+                self._turn(here, facing + 180.0, "turning round in the car"),
             ],
             exit=out,
         )
