@@ -332,3 +332,47 @@ async def test_a_fleet_robot_with_its_next_order_waits_on_the_loading_spot() -> 
     ]
     without = await deliver_in_a_fleet(next_order=False)
     assert without[-3:] == ["to its parking spot", "parked", "parked"]
+
+
+async def test_a_fleet_robot_calls_the_car_as_soon_as_it_is_its() -> None:
+    """The car is called the moment the elevator lease is granted, on the loading spot, so it
+    travels while the robot drives out of the tea room to its door; it used to be called
+    only once the robot faced the car's doors, and stood waiting for it there."""
+    clock = ManualClock(0.0)
+    board = Board(ALL_TOPICS, clock=clock)
+    spot = PLAN.floor(2).parking[0]
+    board.publish(CURRENT_STATE, pose_at(2, spot.x_mm, spot.y_mm, spot.heading_deg))
+    daemon = Daemon(board, [NavigationModule(FLEET, PLAN)])
+    stand = Stand(board, elevator=True)
+    seen: list[tuple[str, str]] = []
+
+    async def record() -> None:
+        with (
+            board.subscribe(MOVE_INSTRUCTION) as moves,
+            board.subscribe(ELEVATOR_REQUEST) as calls,
+        ):
+            while True:
+                while (move := moves.get_nowait()) is not None:
+                    seen.append(("move", move.msg.detail))
+                while (call := calls.get_nowait()) is not None:
+                    seen.append((call.msg.action, str(call.msg.floor)))
+                await asyncio.sleep(0)
+
+    tasks = [
+        asyncio.create_task(record()),
+        asyncio.create_task(stand.motion()),
+        asyncio.create_task(stand.lift()),
+        asyncio.create_task(grant_every_lease(board)),
+    ]
+    try:
+        await daemon.start()
+        board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o1", room="305", drink="tea"))
+        await clock.advance(1.0)
+        board.publish(OPERATOR_EVENT, OperatorEvent(kind="cup_loaded", order_id="o1"))
+        await clock.advance(5.0)
+    finally:
+        await stop(tasks)
+        await daemon.shutdown()
+    out_of_room = seen.index(("move", "out of Tea room"))
+    assert ("call", "2") in seen[:out_of_room]
+    assert seen.index(("move", "to the loading spot")) < seen.index(("call", "2"))

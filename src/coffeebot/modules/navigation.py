@@ -342,18 +342,22 @@ class NavigationModule(Module):
             state = ctx.board.latest(LEASE_STATE)
             return state is not None and state.msg.holds(lease.place)
 
-        if held():
-            self._holding.add(lease.place)
-            return
-        what = lease.place.replace("_", " ")
-        self._progress(ctx, f"waiting for the {what}: another robot is using it")
-        if not await self._wait_for(ctx, held, self.nav.blocked_give_up_s):
-            raise DeliveryAborted(
-                f"the {what} stayed taken for {self.nav.blocked_give_up_s:.0f} s",
-                DeliveryProblem.BLOCKED,
-            )
+        if not held():
+            what = lease.place.replace("_", " ")
+            self._progress(ctx, f"waiting for the {what}: another robot is using it")
+            if not await self._wait_for(ctx, held, self.nav.blocked_give_up_s):
+                raise DeliveryAborted(
+                    f"the {what} stayed taken for {self.nav.blocked_give_up_s:.0f} s",
+                    DeliveryProblem.BLOCKED,
+                )
+            self._progress(ctx, f"the {what} is free: going on")
         self._holding.add(lease.place)
-        self._progress(ctx, f"the {what} is free: going on")
+        pose = self._pose(ctx)
+        if lease.place == "elevator" and pose is not None:
+            # The car is this robot's: call it now, as a person presses the button walking
+            # up, so it travels while the robot drives to its door (the call at the door,
+            # :meth:`_ride`, then finds it there).
+            ctx.board.publish(ELEVATOR_REQUEST, ElevatorRequest(action="call", floor=pose.floor))
 
     # --- elevator --------------------------------------------------------------------------
 
