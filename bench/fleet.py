@@ -64,6 +64,7 @@ from typing import Any
 import aiomqtt
 import numpy as np
 
+from coffeebot.clock import Clock
 from coffeebot.config import RobotConfig, load_robot_config
 from coffeebot.cpu import BOARD_NAME
 from coffeebot.fleet.mosquitto import DISPATCHER_USER, Mosquitto, mosquitto
@@ -384,6 +385,9 @@ async def run_case(case: Case) -> dict[str, Any]:
         ) as fleet:
             for sim in fleet.sims:
                 probes[sim.robot.name].truth = functools.partial(_truth, fleet, sim)
+            simulated_time = SimulatedTime(fleet.dispatcher.board.clock)
+            for handler in logging.getLogger().handlers:
+                handler.addFilter(simulated_time)
             serving = asyncio.create_task(serve_fleet(fleet))
             observer = asyncio.create_task(observe(broker, traffic))
             try:
@@ -407,6 +411,20 @@ def _truth(fleet: FleetSim, sim: Simulation) -> tuple[int, float, float]:
     with fleet.world.lock:
         pose = sim.robot.pose
         return sim.robot.floor_level, pose.x_mm, pose.y_mm
+
+
+class SimulatedTime(logging.Filter):
+    """Puts ``sim_s=`` (the case's simulated clock) on every line of ``--logs``: how long a
+    place was held or a robot waited is read back from the lines, and their machine time
+    runs at whatever pace the machine steps the fleet."""
+
+    def __init__(self, clock: Clock) -> None:
+        super().__init__()
+        self.clock = clock
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        record.sim_s = round(self.clock.now(), 2)
+        return True
 
 
 def run_case_in_process(case: Case, log_dir: Path | None) -> dict[str, Any]:
