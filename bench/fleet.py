@@ -27,7 +27,10 @@ What it measures, on the simulated clock:
   the robot truly was (p95, and the largest with when and where), and with ``--cameras``
   every ceiling-camera fix it received (p95, max, each over 300 mm or for the wrong floor);
 - ``joint_p95_s``, ``greedy_p95_s``: the wait p95 of each strategy's run (null where
-  it was not run).
+  it was not run);
+- per run (``--save``, and in the table's notes): ``places_held_pct``, the share of the
+  case's minutes each shared place was held by some robot (the dispatcher's lease book,
+  sampled), what shows which place holds a fleet back.
 
 ``broker_kill``: three robots at 30 orders an hour for half the minutes, the broker killed
 twice for 20 s while orders are on their way, then the orders drained: every order placed
@@ -90,7 +93,8 @@ BOARD = load_robot_config(ROOT / "boards" / "coffeebot-v1.toml")
 RULES = OrderRules(rooms=set(PLAN.rooms), drinks=set(BOARD.web.drinks))
 STAFF = Staff(load_after_s=3.0, pickup_after_s=5.0)
 SAMPLE_S = 0.25
-"""How often the bench looks at the world (elevator entries) and places due orders."""
+"""How often the bench looks at the world (elevator entries) and the leases, and places due
+orders."""
 SPEED = 4.0
 """The daemons are in lockstep with the world, the broker between them is not: at most
 this fast, so a message's time on the wire stays small in simulated time."""
@@ -244,6 +248,8 @@ async def drive(
     end_s = case.minutes * 60
     kills = [f * end_s for f in KILLS_AT] if case.broker_kill else []
     restart_at: float | None = None
+    held_s: dict[str, float] = defaultdict(float)
+    """Per shared place, how long some robot held it (sampled every ``SAMPLE_S``)."""
 
     async def place(room: str) -> None:
         new = NewOrder.model_validate(
@@ -267,6 +273,11 @@ async def drive(
         if restart_at is not None and now >= restart_at:
             broker.start()
             restart_at = None
+        if (dispatcher := orders.dispatcher) is not None and now < end_s:
+            for shared, state in dispatcher.leases.places.items():
+                # Read, not asked: ``holder()`` would let an expired lease go early.
+                if state.lease is not None and now < state.lease.expires_at_s:
+                    held_s[shared] += SAMPLE_S
         with fleet.world.lock:
             for sim in fleet.sims:
                 asked, inside = probes[sim.robot.name].elevator_asked_s, entered[sim.robot.name]
@@ -323,6 +334,7 @@ async def drive(
         "wait_p50_s": percentile(waits, 50),
         "wait_p95_s": percentile(waits, 95),
         "elevator_rides": len(elevator),
+        "places_held_pct": {p: round(100 * held_s[p] / end_s, 1) for p in sorted(held_s)},
         "elevator_wait_p95_s": percentile(elevator, 95),
         "contacts": contacts,
         "pose_error_mm_p95": percentile(
@@ -510,6 +522,8 @@ def print_table(result: dict[str, Any], runs: list[dict[str, Any]], elapsed: flo
             f"\n{_label(r)}: estimate's error p95 {r['pose_error_mm_p95']} mm, "
             f"largest {r['pose_error_worst']}"
         )
+        held = ", ".join(f"{p} {pct} %" for p, pct in r["places_held_pct"].items())
+        print(f"{_label(r)}: shared places held (share of the run): {held or 'none'}")
         if r["camera_fixes"]:
             print(
                 f"{_label(r)}: {r['camera_fixes']} camera fixes, error p95 "
