@@ -24,7 +24,7 @@ spot to when it is out in the hallway. The elevator is the other shared place. A
 for it where a robot coming out of the car is not in its way: on its own side, as near the
 wall as a passing robot, ``max(pull_over_mm, hold_short_mm)`` short of the elevator, or in
 the room it leaves when that room is nearer than that; and it holds the car until it is
-until it is out of the car on the other floor. The space in front of the car's door is held
+out of the car on the other floor. The space in front of the car's door is held
 apart from the car, by the *crossing* on the floor where the car faces the base room and the
 *landing* on the others: a robot holds it driving up to the car and into it, and out of the
 car until it is as far from it as the next robot waits, so the next robot on that floor sets
