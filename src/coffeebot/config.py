@@ -742,9 +742,8 @@ class MotionConfig(Section):
         gt=0,
         le=SPEED_MM_S,
         description="speed of a drive to a point through a doorway: into and out of a room "
-        "or the elevator's car (at 150 mm/s those drives took a fleet's shared places, the "
-        "car and the loading spot, a third of their time); the profile still brakes to stop "
-        "on the point",
+        "or the elevator's car (at 150 mm/s a robot took 14 s to drive its 2 m into the car, "
+        "holding the car the fleet shares); the profile still brakes to stop on the point",
     )
     approach_mm: float = Field(
         1200.0,
