@@ -289,26 +289,36 @@ async def grant_every_lease(board: Board) -> None:
             board.publish(LEASE_STATE, LeaseState.model_validate(dict.fromkeys(held, True)))
 
 
-async def deliver_in_a_fleet(next_order: bool) -> list[str]:
-    """A fleet's robot delivers to 205 from its parking spot and comes home, its next order
-    dispatched (``next_order``) while it waits at 205's door; the details of its moves from
-    the pickup on."""
+def fleet_robot_on_its_spot() -> tuple[ManualClock, Board, Daemon, Stand]:
+    """A fleet's robot parked at the tea room's first spot, its navigation not yet started,
+    with a stand that finishes its moves and answers for the elevator."""
     clock = ManualClock(0.0)
     board = Board(ALL_TOPICS, clock=clock)
     spot = PLAN.floor(2).parking[0]
     board.publish(CURRENT_STATE, pose_at(2, spot.x_mm, spot.y_mm, spot.heading_deg))
-    daemon = Daemon(board, [NavigationModule(FLEET, PLAN)])
-    stand = Stand(board, elevator=True)
+    return clock, board, Daemon(board, [NavigationModule(FLEET, PLAN)]), Stand(board, True)
+
+
+async def dispatch_and_load(clock: ManualClock, board: Board, room: str) -> None:
+    """Order o1 for ``room`` dispatched, its cup loaded a second later."""
+    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o1", room=room, drink="tea"))
+    await clock.advance(1.0)
+    board.publish(OPERATOR_EVENT, OperatorEvent(kind="cup_loaded", order_id="o1"))
+    await clock.advance(5.0)
+
+
+async def deliver_in_a_fleet(next_order: bool) -> list[str]:
+    """A fleet's robot delivers to 205 from its parking spot and comes home, its next order
+    dispatched (``next_order``) while it waits at 205's door; the details of its moves from
+    the pickup on."""
+    clock, board, daemon, stand = fleet_robot_on_its_spot()
     tasks = [
         asyncio.create_task(stand.motion()),
         asyncio.create_task(grant_every_lease(board)),
     ]
     try:
         await daemon.start()
-        board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o1", room="205", drink="tea"))
-        await clock.advance(1.0)
-        board.publish(OPERATOR_EVENT, OperatorEvent(kind="cup_loaded", order_id="o1"))
-        await clock.advance(5.0)
+        await dispatch_and_load(clock, board, "205")
         if next_order:
             board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o2", room="207", drink="tea"))
         picked_at = len(stand.done)
@@ -338,12 +348,7 @@ async def test_a_fleet_robot_calls_the_car_as_soon_as_it_is_its() -> None:
     """The car is called the moment the elevator lease is granted, on the loading spot, so it
     travels while the robot drives out of the tea room to its door; it used to be called
     only once the robot faced the car's doors, and stood waiting for it there."""
-    clock = ManualClock(0.0)
-    board = Board(ALL_TOPICS, clock=clock)
-    spot = PLAN.floor(2).parking[0]
-    board.publish(CURRENT_STATE, pose_at(2, spot.x_mm, spot.y_mm, spot.heading_deg))
-    daemon = Daemon(board, [NavigationModule(FLEET, PLAN)])
-    stand = Stand(board, elevator=True)
+    clock, board, daemon, stand = fleet_robot_on_its_spot()
     seen: list[tuple[str, str]] = []
 
     async def record() -> None:
@@ -366,10 +371,7 @@ async def test_a_fleet_robot_calls_the_car_as_soon_as_it_is_its() -> None:
     ]
     try:
         await daemon.start()
-        board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o1", room="305", drink="tea"))
-        await clock.advance(1.0)
-        board.publish(OPERATOR_EVENT, OperatorEvent(kind="cup_loaded", order_id="o1"))
-        await clock.advance(5.0)
+        await dispatch_and_load(clock, board, "305")
     finally:
         await stop(tasks)
         await daemon.shutdown()
