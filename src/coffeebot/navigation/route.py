@@ -287,7 +287,7 @@ class RoutePlanner:
                 steps += clear
         if rides:
             steps.extend(self._to_elevator(floor, s, goal, asked))
-            in_the_car = [Lease(p, False) for p in ("crossing", "landing") if _holds(steps, p)]
+            in_the_car = _front_of_car_given_back(steps)
             if to_car_near:
                 in_the_car.append(spot_given_back)
             steps.append(self._ride(floor_level, goal.floor, goal, in_the_car))
@@ -303,7 +303,7 @@ class RoutePlanner:
         held = Lease("holding_point", True) in steps
         steps.extend(self._along(floor, s, goal, park, held=held))
         # Its goal lies within the space in front of the car.
-        steps += [Lease(p, False) for p in ("crossing", "landing") if _holds(steps, p)]
+        steps += _front_of_car_given_back(steps)
         return Route(steps)
 
     def where(self, floor_level: int, x_mm: float, y_mm: float) -> tuple[float, Door | None]:
@@ -716,3 +716,9 @@ def _holds(steps: list[Step], place: SharedPlace) -> bool:
         if isinstance(step, Lease) and step.place == place:
             return step.want
     return False
+
+
+def _front_of_car_given_back(steps: list[Step]) -> list[Lease]:
+    """Giving back whichever space in front of the car's door (the crossing, the landing) a
+    robot that went through ``steps`` holds at their end."""
+    return [Lease(p, False) for p in ("crossing", "landing") if _holds(steps, p)]
