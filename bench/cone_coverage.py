@@ -1,8 +1,8 @@
 """Where the ToF cones look: the robot's layout against the seed's, from the robot description.
 
-    python bench/coverage.py              # the table, for docs/safety.md
-    python bench/coverage.py --json       # one JSON object
-    python bench/coverage.py --svg DIR    # also draw each layout's coverage map into DIR
+    python bench/cone_coverage.py              # the table, for docs/safety.md
+    python bench/cone_coverage.py --json       # one JSON object
+    python bench/cone_coverage.py --svg DIR    # also draw each layout's coverage map into DIR
 
 The baseline is the seed's layout (every front sensor straight ahead), computed in the same
 run. ``corridor full from`` is how far ahead of the front face every point of the body's
