@@ -51,6 +51,7 @@ from scipy.special import ndtr
 from coffeebot.config import TofConfig
 from coffeebot.hardware.vl53l1x import FULL_ROI, MIN_RANGE_MM, SPADS, SpadRoi
 from coffeebot.messages import RangeReading, ReadingStatus
+from coffeebot.sim.world.cast import first_surfaces
 from coffeebot.sim.world.geometry import Surfaces
 
 _EPS = 1e-6
@@ -358,16 +359,33 @@ class SensorArray:
 
     def returns(self, layers: Layers, sensor: int, roi: SpadRoi = FULL_ROI) -> Returns:
         """What sensor ``sensor`` (index into the mounts) collects through ``roi``."""
+        return self.every_return(layers, roi)[sensor]
+
+    def every_return(self, layers: Layers, roi: SpadRoi = FULL_ROI) -> list[Returns]:
+        """What each sensor collects through ``roi``: one pass over every sensor's layers
+        (each sensor's sums are its own rows', added up as for that sensor alone)."""
         weights = roi_weights(self.optics, roi)
         ambient = self.optics.ambient_mcps * float(weights.sum())
-        signal = weights[..., None] * layers.strength[sensor]
-        total = float(signal.sum())
-        if total <= 0.0:
-            return Returns(0.0, ambient, math.nan, 0.0, roi.spad_count)
-        path = layers.path_mm[sensor]
-        mean = float((signal * path).sum() / total)
-        spread = math.sqrt(max(0.0, float((signal * (path - mean) ** 2).sum() / total)))
-        return Returns(self.optics.signal_mcps * total, ambient, mean, spread, roi.spad_count)
+        rows = len(self.mounts)
+        signal = weights[None, ..., None] * layers.strength
+        total = signal.reshape(rows, -1).sum(axis=1)
+        path = layers.path_mm
+        with np.errstate(divide="ignore", invalid="ignore"):
+            mean = (signal * path).reshape(rows, -1).sum(axis=1) / total
+            deviation = (path - mean[:, None, None, None]) ** 2
+            variance = (signal * deviation).reshape(rows, -1).sum(axis=1) / total
+        return [
+            Returns(
+                self.optics.signal_mcps * float(total[k]),
+                ambient,
+                float(mean[k]),
+                math.sqrt(max(0.0, float(variance[k]))),
+                roi.spad_count,
+            )
+            if total[k] > 0.0
+            else Returns(0.0, ambient, math.nan, 0.0, roi.spad_count)
+            for k in range(rows)
+        ]
 
     def layers(self, x: float, y: float, theta: float, surfaces: Surfaces) -> Layers:
         """Every sensor's returns from a robot pose (mm, theta in rad) among ``surfaces``."""
@@ -421,49 +439,22 @@ class SensorArray:
         shape = (*dx.shape, len(self._tan_el))
         best_t = np.broadcast_to(floor_t, shape).copy()
         best_gain = np.broadcast_to(floor_gain, shape).copy()
-        seg = surfaces.segments
-        if not len(seg):
-            return best_t, best_gain
-        ex, ey = seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1]
-        wx, wy = seg[:, 0] - ox[..., None], seg[:, 1] - oy[..., None]  # (S, 1, K)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            denom = dx[..., None] * ey - dy[..., None] * ex  # (S, A, K)
-            t = (wx * ey - wy * ex) / denom
-            u = (wx * dy[..., None] - wy * dx[..., None]) / denom
-        t = np.where((t > _EPS) & (u >= 0.0) & (u <= 1.0), t, np.inf)
-        cos_h = np.abs(denom) / np.maximum(np.hypot(ex, ey), _EPS)  # (S, A, K)
-        gain_h = surfaces.segment_reflectance * cos_h
-        # A wall standing on the floor and reaching above the cone at its distance is met by
-        # every direction that has not met the floor first: one nearest per column.
-        tall = (seg[:, 4] <= 0.0) & (seg[:, 5] >= oz + t * self._tan_reach)
-        t_tall = np.where(tall, t, np.inf)
-        k = t_tall.argmin(-1)[..., None]
-        nearest = np.take_along_axis(t_tall, k, -1)  # (S, A, 1)
-        wall_gain = np.take_along_axis(gain_h, k, -1) * self._cos_el[None, None, :]
-        hit = nearest < best_t
-        best_t = np.where(hit, nearest, best_t)
-        best_gain = np.where(hit, wall_gain, best_gain)
-        # Faces that stop within the cone (boxes, shelves, a robot, door leaves far away): per
-        # elevation, in the columns that cross one only (about one in ten).
-        crossed = ~tall & np.isfinite(t)
-        partial = np.flatnonzero(np.any(crossed, axis=(0, 1)))
-        if len(partial):
-            cols = np.nonzero(crossed.any(-1))  # (sensor, azimuth) indices
-            tp = t[cols][:, None, partial]  # (N, 1, P)
-            z = oz[cols[0]] + np.where(np.isfinite(tp), tp, 0.0) * tan_el[0, ..., None]
-            met = (z >= seg[partial, 4]) & (z <= seg[partial, 5]) & np.isfinite(tp)
-            tp = np.where(met, tp, np.inf)  # (N, E, P)
-            k = tp.argmin(-1)[..., None]
-            near = np.take_along_axis(tp, k, -1)[..., 0]
-            gain = (
-                np.take_along_axis(
-                    np.broadcast_to(gain_h[cols][:, None, partial], tp.shape), k, -1
-                )[..., 0]
-                * self._cos_el[None, :]
+        if len(surfaces.segments):
+            first_surfaces(
+                ox.ravel(),
+                oy.ravel(),
+                oz.ravel(),
+                dx,
+                dy,
+                self._tan_el,
+                self._cos_el,
+                surfaces.segments,
+                surfaces.segment_reflectance,
+                self._tan_reach,
+                _EPS,
+                best_t,
+                best_gain,
             )
-            hit = near < best_t[cols]
-            best_t[cols] = np.where(hit, near, best_t[cols])
-            best_gain[cols] = np.where(hit, gain, best_gain[cols])
         return best_t, best_gain
 
     def _poles(

@@ -441,14 +441,16 @@ class WorldRobot:
 
     def tof_returns(self, sensor: int, roi: SpadRoi = FULL_ROI) -> Returns:
         """What sensor ``sensor`` (index into the robot's mounts) collects now through
-        ``roi``, noiseless; every sensor's optics are cast once until the world moves."""
+        ``roi``, noiseless; every sensor's optics are cast, and its returns through ``roi``
+        summed, once until the world moves."""
         key = (sensor, roi)
         if key not in self._returns:
             if self._layers is None:
                 s = self.body.state
                 near = self.world.near(self.floor_level, s.x, s.y, self._cast_radius, self)
                 self._layers = self.sensors.layers(s.x, s.y, s.theta, near)
-            self._returns[key] = self.sensors.returns(self._layers, sensor, roi)
+            for k, returns in enumerate(self.sensors.every_return(self._layers, roi)):
+                self._returns[k, roi] = returns
         return self._returns[key]
 
     def tof_reading(
