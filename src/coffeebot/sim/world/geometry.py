@@ -1,4 +1,4 @@
-"""Surfaces as flat numpy arrays, and the two vectorised queries on them: lines of sight and
+"""Surfaces as flat numpy arrays, and the two queries on them: lines of sight and
 footprints (how the sensors range is ``tof.py``).
 
 Everything a sensor can see or the robot can hit is a vertical surface with a height range:
@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from coffeebot.floorplan import segment_distances
+from coffeebot.sim.world.footprint import cylinders_touching, segments_touching
 from coffeebot.sim.world.materials import DEFAULT
 
 _EPS = 1e-6
@@ -150,43 +151,14 @@ def footprint_contacts(
     """
     c, s = math.cos(theta), math.sin(theta)
     contacts: list[Contact] = []
-    seg = surfaces.segments
-    if len(seg):
-        keep = (seg[:, 5] > z_range[0]) & (seg[:, 4] < z_range[1])
-        p0x = c * (seg[:, 0] - x) + s * (seg[:, 1] - y)
-        p0y = -s * (seg[:, 0] - x) + c * (seg[:, 1] - y)
-        p1x = c * (seg[:, 2] - x) + s * (seg[:, 3] - y)
-        p1y = -s * (seg[:, 2] - x) + c * (seg[:, 3] - y)
-        ddx, ddy = p1x - p0x, p1y - p0y
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ax, bx = (-half_length - p0x) / ddx, (half_length - p0x) / ddx
-            ay, by = (-half_width - p0y) / ddy, (half_width - p0y) / ddy
-            enter = np.maximum.reduce([np.zeros_like(ax), np.minimum(ax, bx), np.minimum(ay, by)])
-            leave = np.minimum.reduce([np.ones_like(ax), np.maximum(ax, bx), np.maximum(ay, by)])
-            hit = keep & (enter <= leave)
-        for i in np.flatnonzero(hit):
-            t = (enter[i] + leave[i]) / 2
-            contacts.append(
-                Contact(
-                    surfaces.segment_ids[i],
-                    float(seg[i, 0] + t * (seg[i, 2] - seg[i, 0])),
-                    float(seg[i, 1] + t * (seg[i, 3] - seg[i, 1])),
-                )
-            )
-    cyl = surfaces.cylinders
-    if len(cyl):
-        keep = (cyl[:, 4] > z_range[0]) & (cyl[:, 3] < z_range[1])
-        lx = c * (cyl[:, 0] - x) + s * (cyl[:, 1] - y)
-        ly = -s * (cyl[:, 0] - x) + c * (cyl[:, 1] - y)
-        qx = np.clip(lx, -half_length, half_length)
-        qy = np.clip(ly, -half_width, half_width)
-        hit = keep & (np.hypot(lx - qx, ly - qy) <= cyl[:, 2])
-        for i in np.flatnonzero(hit):
-            contacts.append(
-                Contact(
-                    surfaces.cylinder_ids[i],
-                    float(x + c * qx[i] - s * qy[i]),
-                    float(y + s * qx[i] + c * qy[i]),
-                )
-            )
+    if len(surfaces.segments):
+        found = segments_touching(surfaces.segments, x, y, c, s, half_length, half_width, *z_range)
+        for i, px, py in zip(*found, strict=True):
+            contacts.append(Contact(surfaces.segment_ids[i], float(px), float(py)))
+    if len(surfaces.cylinders):
+        found = cylinders_touching(
+            surfaces.cylinders, x, y, c, s, half_length, half_width, *z_range
+        )
+        for i, px, py in zip(*found, strict=True):
+            contacts.append(Contact(surfaces.cylinder_ids[i], float(px), float(py)))
     return contacts

@@ -25,7 +25,7 @@ from coffeebot.hardware.dwm1001 import ANCHOR_RANGE_MM
 from coffeebot.hardware.vl53l1x import FULL_ROI, SpadRoi
 from coffeebot.messages import AnchorRange, UwbFix
 from coffeebot.sim.world.elevator import SimElevator
-from coffeebot.sim.world.geometry import Surfaces, footprint_contacts
+from coffeebot.sim.world.geometry import Contact, Surfaces, footprint_contacts
 from coffeebot.sim.world.materials import ROBOT_SHELL, element_reflectance
 from coffeebot.sim.world.obstacles import ObstacleSpec, obstacle_surfaces
 from coffeebot.sim.world.robot import BodyState, Pose, RobotBody, RobotSpec
@@ -150,8 +150,8 @@ class World:
     ) -> Surfaces:
         """What of floor ``level`` comes within ``radius`` of (x, y) now, the robots but
         ``without`` included: ``surfaces(level, without=...)`` narrowed to it, element for
-        element, without gathering the whole floor at every physics step (a robot whose
-        centre is too far for any side of it to reach is passed over)."""
+        element (a robot whose centre is too far for any side of it to reach is passed
+        over). What a robot's cones are cast against."""
         scene = self._scene(level, None)
         found = scene.take(*scene.near(x, y, radius))
         for robot in self.robots:
@@ -162,6 +162,30 @@ class World:
                 continue
             outline = robot.outline()
             found = found + outline.take(*outline.near(x, y, radius))
+        return found
+
+    def touching(
+        self,
+        level: int,
+        pose: tuple[float, float, float],
+        half_size: tuple[float, float],
+        z_range: tuple[float, float],
+        without: WorldRobot | None = None,
+    ) -> list[Contact]:
+        """What on floor ``level`` touches a rectangle (centre x, y and heading in rad;
+        half its length and width) now, the robots but ``without`` included, in the order
+        of :meth:`surfaces`. The floor is tested whole: compiled, that costs less than
+        narrowing it down first."""
+        x, y, theta = pose
+        found = footprint_contacts(self._scene(level, None), x, y, theta, *half_size, z_range)
+        reach = math.hypot(*half_size) + 1.0
+        for robot in self.robots:
+            if robot is without or robot.floor_level != level:
+                continue
+            s = robot.body.state
+            if math.hypot(s.x - x, s.y - y) - robot.half_diagonal_mm > reach:
+                continue
+            found += footprint_contacts(robot.outline(), x, y, theta, *half_size, z_range)
         return found
 
     def _scene(self, level: int, t_s: float | None) -> Surfaces:
@@ -278,7 +302,6 @@ class WorldRobot:
         self._cast_radius = world.optics.max_path_mm + reach
         self.half_diagonal_mm = math.hypot(spec.length_mm, spec.width_mm) / 2
         """How far from its centre the body reaches."""
-        self._contact_radius = self.half_diagonal_mm + 1.0
         self.body = RobotBody(spec, pose)
         self.floor_level = world.plan.floor(floor).level
         self._command_until = math.inf
@@ -350,20 +373,13 @@ class WorldRobot:
         self, x: float, y: float, theta: float, inflate_mm: float = 0.0
     ) -> dict[str, tuple[float, float]]:
         """Elements touching the footprint at a pose (grown by ``inflate_mm`` on each side)."""
-        near = self.world.near(
-            self.floor_level, x, y, self._contact_radius + inflate_mm, without=self
-        )
-        if not len(near.segments) and not len(near.cylinders):
-            return {}  # the usual case, every physics step: nothing within reach
         spec = self.spec
-        found = footprint_contacts(
-            near,
-            x,
-            y,
-            theta,
-            spec.length_mm / 2 + inflate_mm,
-            spec.width_mm / 2 + inflate_mm,
+        found = self.world.touching(
+            self.floor_level,
+            (x, y, theta),
+            (spec.length_mm / 2 + inflate_mm, spec.width_mm / 2 + inflate_mm),
             (spec.ground_clearance_mm, spec.height_mm),
+            without=self,
         )
         return {c.element: (c.x_mm, c.y_mm) for c in found}
 
