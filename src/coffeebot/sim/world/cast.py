@@ -94,3 +94,93 @@ def first_surfaces(
                 if near < best_t[s, a, e]:
                     best_t[s, a, e] = near
                     best_gain[s, a, e] = gain[s, a, k_near] * cos_el[e]
+
+
+@njit(cache=True, error_model="numpy")
+def poles_in_view(
+    cylinders: np.ndarray,
+    reflectance: np.ndarray,
+    ox: np.ndarray,
+    oy: np.ndarray,
+    oz: np.ndarray,
+    azimuths: np.ndarray,
+    tan_el: np.ndarray,
+    cos_el: np.ndarray,
+    bg_t: np.ndarray,
+    half_column: float,
+    eps: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The poles (``cylinders``, nearest first: cx cy r z_bottom z_top) some column of some
+    cone covers, in front of the background (``bg_t``, S x A x E).
+
+    A pole covers a share of each azimuth column (its angular width against the column's,
+    centred on its bearing), met at the middle of the visible sliver. Returns the indices of
+    the poles seen (P), the columns (sensor, azimuth: N each) some pole covers, each pole's
+    horizontal distance there (N x P), its gain per elevation (N x E x P: the share it
+    covers and the light the nearer poles let through, x reflectance x cos(incidence) x
+    cos(elevation)) and the share of each direction (S x A x E) that gets through them all.
+    """
+    n_s, n_a = azimuths.shape
+    n_k = cylinders.shape[0]
+    n_e = tan_el.shape[0]
+    dist = np.empty((n_s, n_k))
+    half = np.empty((n_s, n_k))
+    bearing = np.empty((n_s, n_k))
+    for s in range(n_s):
+        for k in range(n_k):
+            cx = cylinders[k, 0] - ox[s]
+            cy = cylinders[k, 1] - oy[s]
+            r = cylinders[k, 2]
+            dist[s, k] = max(np.hypot(cx, cy), r + eps)
+            half[s, k] = np.arcsin(min(max(r / dist[s, k], 0.0), 1.0))
+            bearing[s, k] = np.arctan2(cy, cx)
+    width = 2 * half_column
+    offset = np.empty((n_s, n_a, n_k))
+    cover = np.empty((n_s, n_a, n_k))
+    seen = np.zeros(n_k, np.bool_)
+    covered = np.zeros((n_s, n_a), np.bool_)
+    for s in range(n_s):
+        for a in range(n_a):
+            for k in range(n_k):
+                off = (bearing[s, k] - azimuths[s, a] + np.pi) % (2 * np.pi) - np.pi
+                lo = max(off - half[s, k], -half_column)
+                hi = min(off + half[s, k], half_column)
+                share = min(max((hi - lo) / width, 0.0), 1.0)
+                offset[s, a, k] = off
+                cover[s, a, k] = share
+                if share != 0.0:
+                    seen[k] = True
+                    covered[s, a] = True
+    poles = np.flatnonzero(seen)
+    rows, azs = np.nonzero(covered)
+    n_p, n_n = len(poles), len(rows)
+    t = np.empty((n_n, n_p))
+    gain = np.empty((n_n, n_e, n_p))
+    through = np.ones((n_s, n_a, n_e))
+    for n in range(n_n):
+        s, a = rows[n], azs[n]
+        cos_h = np.empty(n_p)
+        for j in range(n_p):
+            k = poles[j]
+            r = cylinders[k, 2]
+            off = offset[s, a, k]
+            lo = max(off - half[s, k], -half_column)
+            hi = min(off + half[s, k], half_column)
+            mid = min(max((lo + hi) / 2 - off, -half[s, k]), half[s, k])
+            side = dist[s, k] * np.sin(mid)
+            depth = np.sqrt(max(r * r - side * side, 0.0))
+            t[n, j] = dist[s, k] * np.cos(mid) - depth
+            cos_h[j] = depth / r
+        for e in range(n_e):
+            passed = 1.0
+            for j in range(n_p):
+                k = poles[j]
+                tk = t[n, j]
+                z = oz[s] + tk * tan_el[e]
+                share = 0.0
+                if z >= cylinders[k, 3] and z <= cylinders[k, 4] and tk < bg_t[s, a, e] and tk > 0:
+                    share = cover[s, a, k]
+                gain[n, e, j] = share * passed * (reflectance[k] * cos_h[j]) * cos_el[e]
+                passed = passed * (1.0 - share)
+            through[s, a, e] = passed
+    return poles, rows, azs, t, gain, through

@@ -51,7 +51,7 @@ from scipy.special import ndtr
 from coffeebot.config import TofConfig
 from coffeebot.hardware.vl53l1x import FULL_ROI, MIN_RANGE_MM, SPADS, SpadRoi
 from coffeebot.messages import RangeReading, ReadingStatus
-from coffeebot.sim.world.cast import first_surfaces
+from coffeebot.sim.world.cast import first_surfaces, poles_in_view
 from coffeebot.sim.world.geometry import Surfaces
 
 _EPS = 1e-6
@@ -257,10 +257,6 @@ def range_once(
 def _near_bias(noise: RangingNoise, distance_mm: float) -> float:
     fade = (distance_mm - noise.near_bias_until_mm) / noise.near_bias_fade_mm
     return noise.near_bias_mm * min(1.0, max(0.0, 1.0 - fade))
-
-
-def _wrap(angle: np.ndarray) -> np.ndarray:
-    return (angle + math.pi) % (2 * math.pi) - math.pi
 
 
 def _box_response(u: np.ndarray, lo: float, hi: float, blur: float) -> np.ndarray:
@@ -472,47 +468,19 @@ class SensorArray:
         if not len(cyl):
             return None
         order = np.argsort(np.hypot(cyl[:, 0] - ox.mean(), cyl[:, 1] - oy.mean()))
-        cyl, reflect = cyl[order], surfaces.cylinder_reflectance[order]
-        cx, cy, r = cyl[:, 0] - ox, cyl[:, 1] - oy, cyl[:, 2]  # (S, K)
-        dist = np.maximum(np.hypot(cx, cy), r + _EPS)
-        half = np.arcsin(np.clip(r / dist, 0.0, 1.0))
-        offset = _wrap(np.arctan2(cy, cx)[:, None, :] - azimuths[..., None])  # (S, A, K)
-        lo = np.maximum(offset - half[:, None, :], -self._half_column)
-        hi = np.minimum(offset + half[:, None, :], self._half_column)
-        cover = np.clip((hi - lo) / (2 * self._half_column), 0.0, 1.0)
-        # Only the poles some column of some cone covers cost anything further.
-        seen = np.flatnonzero(cover.any(axis=(0, 1)))
+        seen, rows, azs, t, gain, through = poles_in_view(
+            cyl[order],
+            surfaces.cylinder_reflectance[order],
+            ox.ravel(),
+            oy.ravel(),
+            oz.ravel(),
+            azimuths,
+            self._tan_el,
+            self._cos_el,
+            bg_t,
+            self._half_column,
+            _EPS,
+        )
         if not len(seen):
             return None
-        cyl, reflect, r = cyl[seen], reflect[seen], r[seen]
-        dist, half, offset, lo, hi, cover = (
-            dist[:, seen],
-            half[:, seen],
-            offset[..., seen],
-            lo[..., seen],
-            hi[..., seen],
-            cover[..., seen],
-        )
-        # The middle of the visible sliver, as an angle from the pole's bearing.
-        mid = np.clip((lo + hi) / 2 - offset, -half[:, None, :], half[:, None, :])
-        side = dist[:, None, :] * np.sin(mid)
-        depth = np.sqrt(np.maximum(r * r - side * side, 0.0))
-        t = dist[:, None, :] * np.cos(mid) - depth  # (S, A, K)
-        cos_h = depth / r
-        # Per elevation, in the columns some pole covers only (one in fifteen or so); the
-        # others see every pole with no gain and let all of their light through.
-        rows, azs = np.nonzero(cover.any(-1))  # (sensor, azimuth) indices
-        cols = (rows, azs)
-        tc = t[cols][:, None, :]  # (N, 1, K)
-        z = oz[cols[0]] + tc * self._tan_el[None, :, None]  # (N, E, K)
-        cover3 = np.where(
-            (z >= cyl[:, 3]) & (z <= cyl[:, 4]) & (tc < bg_t[cols][..., None]) & (tc > 0),
-            cover[cols][:, None, :],
-            0.0,
-        )
-        through = np.cumprod(1.0 - cover3, axis=-1)
-        before = np.concatenate([np.ones_like(through[..., :1]), through[..., :-1]], -1)
-        gain = cover3 * before * (reflect * cos_h)[cols][:, None, :]
-        through_all = np.ones(bg_t.shape)
-        through_all[cols] = through[..., -1]
-        return _Poles(cols, tc, gain * self._cos_el[None, :, None], through_all)
+        return _Poles((rows, azs), t[:, None, :], gain, through)
