@@ -184,3 +184,32 @@ def poles_in_view(
                 passed = passed * (1.0 - share)
             through[s, a, e] = passed
     return poles, rows, azs, t, gain, through
+
+
+@njit(cache=True, error_model="numpy")
+def visible(
+    horizontal: np.ndarray,
+    gain: np.ndarray,
+    tilt: np.ndarray,
+    max_path_mm: float,
+    path: np.ndarray,
+    strength: np.ndarray,
+) -> None:
+    """Fill ``path`` (along the ray, mm) and ``strength`` (``gain`` / path^2, m) of what lies
+    ``horizontal`` away, 0 where nothing within the optics' reach is; ``tilt`` is each
+    direction's cos(elevation). Every argument is three-dimensional, of one shape."""
+    n_x, n_y, n_z = horizontal.shape
+    for i in range(n_x):
+        for j in range(n_y):
+            for k in range(n_z):
+                h = horizontal[i, j, k]
+                finite = np.isfinite(h)
+                along = (h if finite else 0.0) / tilt[i, j, k]
+                g = gain[i, j, k]
+                if finite and g > 0.0 and along <= max_path_mm:
+                    metres = along / 1000.0
+                    path[i, j, k] = along
+                    strength[i, j, k] = g / (metres * metres)
+                else:
+                    path[i, j, k] = 0.0
+                    strength[i, j, k] = 0.0

@@ -51,7 +51,7 @@ from scipy.special import ndtr
 from coffeebot.config import TofConfig
 from coffeebot.hardware.vl53l1x import FULL_ROI, MIN_RANGE_MM, SPADS, SpadRoi
 from coffeebot.messages import RangeReading, ReadingStatus
-from coffeebot.sim.world.cast import first_surfaces, poles_in_view
+from coffeebot.sim.world.cast import first_surfaces, poles_in_view, visible
 from coffeebot.sim.world.geometry import Surfaces
 
 _EPS = 1e-6
@@ -396,27 +396,28 @@ class SensorArray:
         shape = (*bg_t.shape, 1 + (0 if poles is None else poles.gain.shape[-1]))
         path, strength = np.zeros(shape), np.zeros(shape)
         through = 1.0 if poles is None else poles.through
-        path[..., 0], strength[..., 0] = self._visible(
-            bg_t, bg_gain * through, self._cos_el[None, None, :]
+        visible(
+            bg_t,
+            bg_gain * through,
+            np.broadcast_to(self._cos_el, bg_t.shape),
+            self.optics.max_path_mm,
+            path[..., 0],
+            strength[..., 0],
         )
         if poles is not None:
             # Elsewhere a pole layer holds nothing: no path, no strength.
             rows, cols = poles.columns
-            path[rows, cols, :, 1:], strength[rows, cols, :, 1:] = self._visible(
-                np.broadcast_to(poles.t, poles.gain.shape), poles.gain, self._cos_el[None, :, None]
+            pole_path, pole_strength = np.empty(poles.gain.shape), np.empty(poles.gain.shape)
+            visible(
+                np.broadcast_to(poles.t, poles.gain.shape),
+                poles.gain,
+                np.broadcast_to(self._cos_el[None, :, None], poles.gain.shape),
+                self.optics.max_path_mm,
+                pole_path,
+                pole_strength,
             )
+            path[rows, cols, :, 1:], strength[rows, cols, :, 1:] = pole_path, pole_strength
         return Layers(path, strength)
-
-    def _visible(
-        self, horizontal: np.ndarray, gain: np.ndarray, tilt: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Path along the ray and strength (reflectance x cos(incidence) / path^2, m) of what
-        lies ``horizontal`` away with ``gain``, 0 where nothing within the optics' reach is."""
-        path = np.where(np.isfinite(horizontal), horizontal, 0.0) / tilt
-        seen = np.isfinite(horizontal) & (gain > 0.0) & (path <= self.optics.max_path_mm)
-        path = np.where(seen, path, 0.0)
-        metres = np.where(seen, path, 1000.0) / 1000.0
-        return path, np.where(seen, gain / metres**2, 0.0)
 
     def _background(
         self,
