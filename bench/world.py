@@ -2,7 +2,8 @@
 
 Prints a table for docs/benchmarks.md. Target: >= 1000 scans/s (20x real time at 50 Hz).
 The baseline is a naive per-direction Python loop over every surface of the floor, measured
-in the same run on the same poses; its paths are checked against the vectorised ones.
+in the same run on the same poses; its paths are checked against the compiled ones
+(``sim/world/cast.py``).
 
     .venv/bin/python bench/world.py [--scans N] [--robots N]
 
@@ -59,7 +60,7 @@ def _poses(world: World, n: int) -> list[Pose]:
 
 def _naive_background(world: World) -> np.ndarray:
     """Per direction, per surface, in plain Python: the path along each sampled direction of
-    every cone to the first wall, face or floor (the layer the vectorised optics compute
+    every cone to the first wall, face or floor (the layer the compiled optics compute
     first; poles are left out here, since they only share that direction's light)."""
     s = world.robot.body.state
     surfaces = world.robot.surfaces()
@@ -128,7 +129,7 @@ def main() -> None:
     furnished = World(plan, robot, floor=2, pose=Pose(2000, 0, 0), obstacles=OBSTACLES)
     poses = _poses(bare, args.scans)
 
-    # The vectorised optics skip surfaces beyond their reach; within it both must agree, on
+    # The compiled optics skip surfaces beyond their reach; within it both must agree, on
     # every direction of the cone (the grid's corners outside it weigh nothing: there a wall
     # tall enough for the cone's edge may be taken for one reaching higher).
     _az, _el, cone = tof._grid(furnished.optics)
@@ -148,9 +149,9 @@ def main() -> None:
             *_rate(furnished, check, lambda: _naive_background(furnished)),
         )
     )
-    rows.append(("vectorised optics, bare floor", *_rate(bare, poses, lambda: _layers(bare))))
+    rows.append(("compiled optics, bare floor", *_rate(bare, poses, lambda: _layers(bare))))
     rows.append(
-        ("vectorised optics, obstacles", *_rate(furnished, poses, lambda: _layers(furnished)))
+        ("compiled optics, obstacles", *_rate(furnished, poses, lambda: _layers(furnished)))
     )
     ranging = _rate(furnished, poses, furnished.robot.scan)
     rows.append(("optics + ranging (scan), obstacles", *ranging))
