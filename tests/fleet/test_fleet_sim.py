@@ -90,6 +90,8 @@ async def drive(fleet: FleetSim, staff: StaffModule, run: FleetRun) -> FleetRun:
     orders = fleet.dispatcher.module
     shared = fleet.world
 
+    clock = fleet.dispatcher.board.clock
+
     async def place(room: str) -> str:
         new = NewOrder.model_validate(
             {"room": room, "drink": BOARD.web.drinks[0], "name": "Ada"}, context=RULES
@@ -99,9 +101,10 @@ async def drive(fleet: FleetSim, staff: StaffModule, run: FleetRun) -> FleetRun:
                 placed = await orders.place(new, "test")
                 run.orders[placed.id] = placed.status
                 return placed.id
-            await asyncio.sleep(0.05)  # the dispatcher is still starting
+            # The dispatcher is still starting: waited for on the simulated clock, so the
+            # orders arrive at the same simulated moment however busy the machine is.
+            await clock.sleep(0.05)
 
-    clock = fleet.dispatcher.board.clock
     await place("211")
     await place("213")
     started = time.monotonic()
