@@ -1,13 +1,14 @@
-"""The first wall or face each direction of every ToF cone meets, as compiled loops.
+"""What each direction of every ToF cone meets, as compiled loops.
 
 Every direction of a cone is a ray; the horizontal solve against every segment is shared by
 the elevations of one azimuth column, then each elevation keeps the nearest of the floor, the
 nearest wall standing on the floor and reaching above the cone (met by every elevation that
 has not met the floor first) and the faces that stop within the cone (a box, a shelf, another
-robot: per elevation, against its height range). As numpy arrays this was some forty
-whole-array passes over (sensor, azimuth, segment) temporaries per scan; as one loop over
-them (numba) it is the same arithmetic in the same order, the same answers to the bit, about
-a quarter of the time. The poles and the chip's sums stay numpy (``tof.py``).
+robot: per elevation, against its height range); poles in front of that cover a share of each
+column. As numpy arrays this was some hundred whole-array passes over small (sensor, azimuth,
+segment) temporaries per scan, mostly the passes' own overhead; as loops (numba) it is the
+same arithmetic in the same order, the same answers to the bit, in well under half the time.
+The chip's sums over the grid stay numpy (``tof.py``).
 """
 
 from __future__ import annotations
