@@ -21,7 +21,8 @@ from coffeebot.messages import (
     ReadingStatus,
 )
 from coffeebot.modules.motion import MotionModule
-from coffeebot.navigation.dwa import rollout
+from coffeebot.navigation.dwa import axle_point, rollout
+from coffeebot.perception.geometry import wrap_deg
 
 FLOOR = PLAN.floor(2)
 HALF_WIDTH = FLOOR.hallway.width_mm / 2
@@ -119,3 +120,52 @@ def test_a_turn_under_way_is_not_judged_again_each_period() -> None:
     module.controller.costmap = module_at(0.0, readings={6: 150.0, 7: 150.0}).costmap
     again = turn_to(module, 0.0, EAST - 90.0, periods=3)
     assert all(c.yaw_rate_dps < 0.0 for c in again)
+
+
+def test_a_half_turn_with_no_room_beside_the_wall_is_made_after_driving_towards_the_middle() -> (
+    None
+):
+    """A robot sent east stands facing west, 35 degrees into the left wall, its axle 399 mm
+    from it: where one stood for good after going round past its stop in the fleet test (its
+    half turn, begun there, was stopped by the collision monitor with the wall 224 mm ahead).
+    It squares up, drives west towards the middle until any turn has room, stops, then turns
+    east, keeping a turn's clearance to the walls all the way."""
+    module = module_at(0.0)
+    heading = math.radians(EAST + 145.0)
+    axle_x, axle_y = FLOOR.from_hallway(S_MM, 451.0)
+    axle = module.costmap.footprint.axle_x_mm
+    pose = (axle_x - axle * math.cos(heading), axle_y - axle * math.sin(heading), heading)
+    instruction = MoveInstruction(
+        id=1, action="follow_lane", floor=2, target_s_mm=S_MM + 3000.0, stop=True
+    )
+    turned_at_d: float | None = None
+    least_gap = math.inf
+    for k in range(1200):
+        estimate = estimate_at(2, pose[0], pose[1], math.degrees(pose[2]))
+        command = module.controller.step(instruction, estimate, 1.0 + 0.05 * k, 0.05, 500.0)
+        assert command.status.state is not MotionState.BLOCKED, command.status.detail
+        if turned_at_d is None and command.status.detail == "turning into the lane":
+            turned_at_d = FLOOR.to_hallway(*axle_point(*pose, axle))[1]
+        if turned_at_d is not None and abs(wrap_deg(math.degrees(pose[2]) - EAST)) < 5.0:
+            break
+        xs, ys, headings = rollout(
+            pose,
+            np.array([command.speed_mm_s]),
+            np.array([math.radians(command.yaw_rate_dps)]),
+            np.array([0.05]),
+            axle,
+        )
+        pose = (float(xs[0, -1]), float(ys[0, -1]), float(headings[0, -1]))
+        least_gap = min(least_gap, gap_to_walls(module, pose))
+    else:
+        raise AssertionError(f"not turned east: {command.status.detail}")
+    assert turned_at_d is not None
+    reach = math.hypot(CONFIG.geometry.length_mm / 2 + axle, CONFIG.geometry.width_mm / 2)
+    assert abs(turned_at_d) <= HALF_WIDTH - reach - CONFIG.motion.turn_clearance_mm
+    assert least_gap >= CONFIG.motion.turn_clearance_mm
+
+
+def gap_to_walls(module: MotionModule, pose: tuple[float, float, float]) -> float:
+    """The least gap between the body at ``pose`` (x, y, heading rad) and a plan wall."""
+    x, y, heading = (np.array([[v]]) for v in pose)
+    return float(module.costmap.wall_gaps(x, y, heading).min())

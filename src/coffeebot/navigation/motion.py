@@ -38,7 +38,7 @@ from coffeebot.navigation.control import (
 )
 from coffeebot.navigation.costmap import Clearances, Footprint, LocalCostmap
 from coffeebot.navigation.detour import DetourPlanner, Phase, Sighting
-from coffeebot.navigation.dwa import DynamicWindow, rollout
+from coffeebot.navigation.dwa import DynamicWindow, axle_point, rollout
 from coffeebot.navigation.others import standing_outlines
 from coffeebot.navigation.passing import oncoming, right_lane_mm
 from coffeebot.perception.geometry import wrap_deg
@@ -60,6 +60,18 @@ TURN_CHECK_DEG = 7.5
 
 TURNING_DPS = 1.0
 """Turning slower than this, the robot is taken to stand: a turn from here is checked first."""
+
+CENTRE_LINE_MM = 50.0
+"""Within this of the hallway's centre line the axle is on it, for a robot making room."""
+
+MAKING_ROOM = "no room to turn into the lane: making room towards the hallway's middle"
+
+NO_ROOM_TO_MAKE = "no room to turn into the lane, and no way towards the hallway's middle"
+
+MAKE_ROOM_MM = 3000.0
+"""How far a robot whose turn into the lane has no room drives towards the hallway's centre
+line to find room, before it calls itself blocked: the centre is at most half the hallway
+away, and a turn there that still has none is held by something else."""
 
 
 @dataclass(frozen=True)
@@ -98,6 +110,9 @@ class MotionController:
         """The robot the passing lane is kept for, if any."""
         self.yielding = False
         """Kept to the passing lane short of crossing the hallway until ``passing`` is by."""
+        self._room_from: tuple[float, float] | None = None
+        """Where the robot began driving to find room for a turn into the lane, until the
+        turn is begun (kept when it gives up, so the distance is not begun again)."""
 
     def note_traffic(self, traffic: Traffic, now: float) -> None:
         """Where the fleet's other robots are, as the dispatcher said at ``now``."""
@@ -177,6 +192,7 @@ class MotionController:
             self._instruction_id = instruction.id
             self.detour.reset()
             self._line = None
+            self._room_from = None
             self._state = MotionState.MOVING
             self._since = now
             if instruction.target_s_mm is not None and instruction.floor == pose.floor:
@@ -233,6 +249,98 @@ class MotionController:
             return self._command(0.0, 0.0, dt, status, limit)
         status = self._status(ins.id, MotionState.MOVING, now, remaining, detail)
         return self._command(0.0, self._turn_rate(pose.heading_deg, wanted), dt, status, limit)
+
+    def _turn_into_lane(
+        self,
+        ins: MoveInstruction,
+        floor: Floor,
+        pose: PoseEstimate,
+        travel: float,
+        now: float,
+        dt: float,
+        limit: float,
+        remaining: float,
+    ) -> Command:
+        """Turn on the spot to the direction of travel, from where any turn has room: nearer
+        a wall, first drive towards the hallway's centre line. A robot that ended going
+        round past its stop, its axle 485 mm from the wall and facing the wrong way, began
+        its half turn there (the body's sweep had room); the collision monitor stopped it
+        with the wall 224 mm ahead of the front, and there it stood for good."""
+        in_band = self._any_turn_has_room(floor, pose)
+        if in_band and self._room_from is not None and self.speed >= self.cfg.creep_speed_mm_s:
+            # Room made: stand before turning (a turn begun rolling is a wide arc).
+            status = self._status(ins.id, MotionState.AVOIDING, now, remaining, MAKING_ROOM)
+            return self._command(0.0, 0.0, dt, status, limit)
+        if in_band and not self._no_room_to_begin_turn(pose, travel, now):
+            self._room_from = None
+            return self._spin(ins, pose, travel, now, dt, limit, remaining, "turning into the lane")
+        if not in_band and self._room_left(pose):
+            return self._make_room(ins, floor, pose, now, dt, limit, remaining)
+        # In the band, or no room found within MAKE_ROOM_MM: the turn if its sweep has room.
+        return self._spin(ins, pose, travel, now, dt, limit, remaining, "turning into the lane")
+
+    def _room_left(self, pose: PoseEstimate) -> bool:
+        """Whether the robot has driven less than ``MAKE_ROOM_MM`` making room."""
+        if self._room_from is None:
+            self._room_from = (pose.x_mm, pose.y_mm)
+        return math.dist(self._room_from, (pose.x_mm, pose.y_mm)) <= MAKE_ROOM_MM
+
+    def _any_turn_has_room(self, floor: Floor, pose: PoseEstimate) -> bool:
+        """Whether the axle is far enough from both walls for the body's furthest corner
+        to swing all the way round keeping ``turn_clearance_mm`` (or on the centre line, in
+        a hallway too narrow for that). There the front, its corridor and the collision
+        monitor's stop distance ahead of it also keep clear of the walls at any heading
+        (in a 1700 mm hallway, 70 mm to spare)."""
+        fp = self.footprint
+        reach = math.hypot(fp.length_mm / 2.0 + abs(fp.axle_x_mm), fp.width_mm / 2.0)
+        band = floor.hallway.width_mm / 2.0 - reach - self.cfg.turn_clearance_mm
+        axle = axle_point(pose.x_mm, pose.y_mm, math.radians(pose.heading_deg), fp.axle_x_mm)
+        return abs(floor.to_hallway(*axle)[1]) <= max(band, CENTRE_LINE_MM)
+
+    def _make_room(
+        self,
+        ins: MoveInstruction,
+        floor: Floor,
+        pose: PoseEstimate,
+        now: float,
+        dt: float,
+        limit: float,
+        remaining: float,
+    ) -> Command:
+        """One period of driving the way the robot faces, along the hallway, towards its
+        centre line, where a turn on the spot sweeps furthest from both walls: squared up
+        along the hallway first if it faces the nearer wall, then on the dynamic window's
+        arcs; blocked while neither that turn nor any arc is admissible."""
+        axis = floor.hallway.heading_deg
+        facing = 1.0 if math.cos(math.radians(pose.heading_deg - axis)) >= 0.0 else -1.0
+        along = axis + (0.0 if facing > 0 else 180.0)
+        status = self._status(ins.id, MotionState.AVOIDING, now, remaining, MAKING_ROOM)
+        d = floor.to_hallway(pose.x_mm, pose.y_mm)[1]
+        outwards = math.sin(math.radians(pose.heading_deg - axis)) * d > 0.0
+        off = abs(wrap_deg(along - pose.heading_deg)) > self.cfg.heading_tolerance_deg
+        if outwards and off and self.speed < self.cfg.creep_speed_mm_s:
+            # Standing, facing towards the nearer wall: square up first, if that turn has
+            # room (all the way: the window's arcs from a turn still braking find none).
+            if not self._turn_is_free(pose, along, now, self._spin_room):
+                return self._blocked(ins, now, dt, limit, remaining, NO_ROOM_TO_MAKE)
+            return self._command(0.0, self._turn_rate(pose.heading_deg, along), dt, status, limit)
+        choice = self.dwa.choose(
+            self.costmap,
+            floor,
+            (pose.x_mm, pose.y_mm, pose.heading_deg),
+            self.speed,
+            self.yaw_rate,
+            lane_mm=0.0,
+            direction=facing,
+            max_speed_mm_s=max(min(self.cfg.approach_speed_mm_s, limit), self.cfg.creep_speed_mm_s),
+            dt_s=dt,
+            now=now,
+        )
+        if choice is None or (choice.speed_mm_s < 1.0 and abs(choice.yaw_rate_dps) < 1.0):
+            return self._blocked(ins, now, dt, limit, remaining, NO_ROOM_TO_MAKE)
+        self.speed = min(choice.speed_mm_s, limit)
+        self.yaw_rate = choice.yaw_rate_dps
+        return Command(self.speed, self.yaw_rate, status)
 
     def _turn_rate(self, heading: float, wanted: float) -> float:
         """Heading hold, but slow enough at the end of a turn to stop within the tolerance."""
@@ -297,11 +405,10 @@ class MotionController:
             if self.passing is not None:
                 detail = f"{detail}; passing lane, {self.passing} coming"
             status = self._status(ins.id, MotionState.MOVING, now, remaining, detail)
-        if (
-            abs(wrap_deg(travel - pose.heading_deg)) > AIM_BEFORE_LANE_DEG
-            and self.speed < cfg.creep_speed_mm_s
+        if abs(wrap_deg(travel - pose.heading_deg)) > AIM_BEFORE_LANE_DEG and (
+            self.speed < cfg.creep_speed_mm_s or self._room_from is not None
         ):
-            return self._spin(ins, pose, travel, now, dt, limit, remaining, "turning into the lane")
+            return self._turn_into_lane(ins, floor, pose, travel, now, dt, limit, remaining)
         cruise = ins.speed_mm_s or cfg.cruise_speed_mm_s
         approach = cfg.approach_mm if ins.target_room is not None else 0.0
         target = self.profile.target(
@@ -473,17 +580,22 @@ class MotionController:
         return None
 
     def _blocked(
-        self, ins: MoveInstruction, now: float, dt: float, limit: float, remaining: float
+        self,
+        ins: MoveInstruction,
+        now: float,
+        dt: float,
+        limit: float,
+        remaining: float,
+        why: str = "no way past",
     ) -> Command:
-        status = self._status(ins.id, MotionState.BLOCKED, now, remaining, "no way past")
+        status = self._status(ins.id, MotionState.BLOCKED, now, remaining, why)
         return self._command(0.0, 0.0, dt, status, limit)
 
     def _no_room_to_begin_turn(self, pose: PoseEstimate, wanted_deg: float, now: float) -> bool:
-        """Standing (not turning yet), whether the turn on the spot to ``wanted_deg`` lacks
-        the room a turn keeps to the walls (``turn_clearance_mm``)."""
-        return abs(self.yaw_rate) < TURNING_DPS and not self._turn_is_free(
-            pose, wanted_deg, now, self._spin_room
-        )
+        """Standing (not turning yet, or driving to find room), whether the turn on the spot
+        to ``wanted_deg`` lacks the room a turn keeps to the walls (``turn_clearance_mm``)."""
+        standing = abs(self.yaw_rate) < TURNING_DPS or self._room_from is not None
+        return standing and not self._turn_is_free(pose, wanted_deg, now, self._spin_room)
 
     def _turn_is_free(
         self, pose: PoseEstimate, aim_deg: float, now: float, clearances: Clearances | None = None
