@@ -44,6 +44,11 @@ TIME_LIMIT_S = 300.0
 WALL_LIMIT_S = 900.0
 """The machine's seconds before the run is called stuck."""
 SAMPLE_S = 0.1
+ORDERS_AT_S = 10.0
+"""When both orders are placed, in simulated time: the same moment in every run, once the
+dispatcher has heard from both robots (1.5 s in). Placed as soon as the dispatcher took
+orders, they arrived at a moment that depended on the machine's load, and with it which
+robot took which order."""
 SPEED = 2.0
 """The robots' daemons are in lockstep with the world, the broker between them is not: at
 most this fast, so a message's time on the wire stays small in simulated time however busy
@@ -92,19 +97,20 @@ async def drive(fleet: FleetSim, staff: StaffModule, run: FleetRun) -> FleetRun:
 
     clock = fleet.dispatcher.board.clock
 
-    async def place(room: str) -> str:
+    async def place(room: str) -> None:
         new = NewOrder.model_validate(
             {"room": room, "drink": BOARD.web.drinks[0], "name": "Ada"}, context=RULES
         )
-        while True:
-            with contextlib.suppress(Exception):
-                placed = await orders.place(new, "test")
-                run.orders[placed.id] = placed.status
-                return placed.id
-            # The dispatcher is still starting: waited for on the simulated clock, so the
-            # orders arrive at the same simulated moment however busy the machine is.
-            await clock.sleep(0.05)
+        placed = await orders.place(new, "test")
+        run.orders[placed.id] = placed.status
 
+    def both_robots_heard() -> bool:
+        return orders.dispatcher is not None and len(orders.dispatcher.free_robots()) == 2
+
+    while not both_robots_heard():
+        assert clock.now() < ORDERS_AT_S, "the dispatcher has not heard from both robots"
+        await clock.sleep(SAMPLE_S)
+    await clock.sleep(ORDERS_AT_S - clock.now())
     await place("211")
     await place("213")
     started = time.monotonic()
