@@ -410,3 +410,21 @@ def test_the_body_is_swept_along_the_arc_it_drives() -> None:
     assert gap(760) is None
     assert gap(-2000) is not None
     assert gap(-500) is None
+
+
+def test_a_turn_stopped_as_it_braked_may_turn_again_not_nearer_than_where_it_came_to_rest() -> None:
+    """Turning towards a wall, the front stop fires at 224 mm; the turn brakes for two scans
+    and the robot comes to rest at 186 mm. Turning is refused while it still turns, then
+    allowed from where it stands: away (the gap opens), not nearer. Measured from the first
+    scan, the braking alone had forbidden any turn for good."""
+    m = monitor()
+    m.update(scan(CLEAR, t=0.0), 0, 1, 30.0)
+    fired = m.update(scan({**CLEAR, 2: 224}, t=0.1), 0, 2, 30.0)
+    assert fired.state is SafetyState.STOP and not fired.may_rotate
+    assert not m.update(scan({**CLEAR, 2: 205}, t=0.2), 0, 3, 12.0).may_rotate
+    assert m.update(scan({**CLEAR, 2: 186}, t=0.3), 0, 4, 0.0).may_rotate
+    assert m.update(scan({**CLEAR, 2: 186}, t=0.4), 0, 5, 0.0).may_rotate
+    assert m.update(scan({**CLEAR, 2: 196}, t=0.5), 0, 6, -20.0).may_rotate
+    m.update(scan({**CLEAR, 2: 120}, t=0.6), 0, 7, 20.0)
+    nearer = m.update(scan({**CLEAR, 2: 120}, t=0.7), 0, 8, 20.0)
+    assert nearer.state is SafetyState.STOP and not nearer.may_rotate

@@ -85,6 +85,10 @@ MIN_CURVATURE_PER_MM = 1e-5
 MIN_ARC_SPEED_MM_S = 50.0
 """Slower than this the path is judged straight: turning on the spot is ``may_rotate``'s."""
 
+REST_DPS = 2.0
+REST_MM_S = 10.0
+"""Turning and driving slower than these (by the wheels), the robot is at rest."""
+
 ARC_SAMPLES = 9
 """Points along a front reading's arc when asking which part of it is in the corridor."""
 
@@ -233,7 +237,7 @@ class CollisionMonitor:
         self._turned_deg = 0.0
         self._last_t: float | None = None
         self._stop_clearance: float | None = None
-        """The front clearance when the current front stop began."""
+        """The front clearance once the robot came to rest in the current front stop."""
         self._clearance_ema: float | None = None
         """The front clearance smoothed over scans (a noisy blend jitters by tens of mm)."""
         self._side_gap: float | None = None
@@ -578,7 +582,13 @@ class CollisionMonitor:
             speed_limit_mm_s=worst.speed_limit_mm_s,
             blocked_faces=faces,
             front_clearance_mm=clearance,
-            may_rotate=self._may_rotate(stops, faces, clearance, clearance_sigma),
+            may_rotate=self._may_rotate(
+                stops,
+                faces,
+                clearance,
+                clearance_sigma,
+                at_rest=speed < REST_MM_S and abs(yaw_rate_dps) < REST_DPS,
+            ),
             may_creep_ahead=self._may_creep(stops, faces, findings),
         )
 
@@ -588,12 +598,17 @@ class CollisionMonitor:
         faces: tuple[str, ...],
         clearance: int | None,
         sigma_mm: float,
+        at_rest: bool,
     ) -> bool:
         """Turning on the spot is allowed only while every stop is an obstacle on the front
         face (no sensor fault, no mover, sides clear) and either everything in the way is
         out of the front corners' reach, or the (smoothed) front clearance has not fallen
-        since the stop began: a turn that brings the front nearer, or anything coming
-        closer, ends it."""
+        since the robot came to rest in the stop: a turn that brings the front nearer, or
+        anything coming closer, ends it. The clearance to hold is taken at rest, not as the
+        stop fires: a turn the stop ends brakes for a scan or two, the front coming nearer
+        meanwhile, and measured from the first scan that alone forbade turning either way
+        for good (a robot turning towards a wall, stopped 224 mm from it, came to rest at
+        186 mm and stood there)."""
         front_only = bool(stops) and faces == ("front",)
         front_only = front_only and all(f.distance_mm is not None and not f.moving for f in stops)
         if not front_only or clearance is None:
@@ -602,15 +617,21 @@ class CollisionMonitor:
         ema = self._clearance_ema
         ema = clearance if ema is None else ema + CLEARANCE_SMOOTHING * (clearance - ema)
         self._clearance_ema = ema
-        if self._stop_clearance is None:
-            self._stop_clearance = ema
         out_of_reach = all(
             f.sensor.face == "front"
             and f.distance_mm is not None
             and self.beyond_front_sweep(f.sensor, f.distance_mm)
             for f in stops
         )
-        return out_of_reach or ema >= self._stop_clearance - max(ROTATE_NOISE_MM, 2.0 * sigma_mm)
+        if out_of_reach:
+            return True
+        if self._stop_clearance is None:
+            if not at_rest:
+                return False
+            # The smoothed value still falls for a few scans after the robot stops: the
+            # reading at rest, if lower, is where it stands.
+            self._stop_clearance = min(ema, clearance)
+        return ema >= self._stop_clearance - max(ROTATE_NOISE_MM, 2.0 * sigma_mm)
 
     def _may_creep(
         self, stops: list[_Finding], faces: tuple[str, ...], findings: list[_Finding]
