@@ -263,7 +263,7 @@ class MotionController:
     ) -> Command:
         """Turn on the spot to the direction of travel, from where any turn has room: nearer
         a wall, first drive towards the hallway's centre line. A robot that ended going
-        round past its stop, its axle 485 mm from the wall and facing the wrong way, began
+        round past its stop, its axle 415 mm from the wall and facing the wrong way, began
         its half turn there (the body's sweep had room); the collision monitor stopped it
         with the wall 224 mm ahead of the front, and there it stood for good."""
         in_band = self._any_turn_has_room(floor, pose)
@@ -409,6 +409,7 @@ class MotionController:
             self.speed < cfg.creep_speed_mm_s or self._room_from is not None
         ):
             return self._turn_into_lane(ins, floor, pose, travel, now, dt, limit, remaining)
+        self._room_from = None
         cruise = ins.speed_mm_s or cfg.cruise_speed_mm_s
         approach = cfg.approach_mm if ins.target_room is not None else 0.0
         target = self.profile.target(
