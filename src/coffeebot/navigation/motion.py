@@ -38,7 +38,7 @@ from coffeebot.navigation.control import (
 )
 from coffeebot.navigation.costmap import Clearances, Footprint, LocalCostmap
 from coffeebot.navigation.detour import DetourPlanner, Phase, Sighting
-from coffeebot.navigation.dwa import DynamicWindow, axle_point, rollout
+from coffeebot.navigation.dwa import DwaChoice, DynamicWindow, axle_point, rollout
 from coffeebot.navigation.others import standing_outlines
 from coffeebot.navigation.passing import oncoming, right_lane_mm
 from coffeebot.perception.geometry import wrap_deg
@@ -271,13 +271,14 @@ class MotionController:
             # Room made: stand before turning (a turn begun rolling is a wide arc).
             status = self._status(ins.id, MotionState.AVOIDING, now, remaining, MAKING_ROOM)
             return self._command(0.0, 0.0, dt, status, limit)
-        if in_band and not self._no_room_to_begin_turn(pose, travel, now):
-            self._room_from = None
-            return self._spin(ins, pose, travel, now, dt, limit, remaining, "turning into the lane")
         if not in_band and self._room_left(pose):
             return self._make_room(ins, floor, pose, now, dt, limit, remaining)
-        # In the band, or no room found within MAKE_ROOM_MM: the turn if its sweep has room.
-        return self._spin(ins, pose, travel, now, dt, limit, remaining, "turning into the lane")
+        # In the band, or no room found within MAKE_ROOM_MM: the turn if its sweep has room
+        # (checked by the spin, while ``_room_from`` still says the robot stands).
+        command = self._spin(ins, pose, travel, now, dt, limit, remaining, "turning into the lane")
+        if in_band and command.status.state is not MotionState.BLOCKED:
+            self._room_from = None
+        return command
 
     def _room_left(self, pose: PoseEstimate) -> bool:
         """Whether the robot has driven less than ``MAKE_ROOM_MM`` making room."""
@@ -314,7 +315,6 @@ class MotionController:
         axis = floor.hallway.heading_deg
         facing = 1.0 if math.cos(math.radians(pose.heading_deg - axis)) >= 0.0 else -1.0
         along = axis + (0.0 if facing > 0 else 180.0)
-        status = self._status(ins.id, MotionState.AVOIDING, now, remaining, MAKING_ROOM)
         d = floor.to_hallway(pose.x_mm, pose.y_mm)[1]
         outwards = math.sin(math.radians(pose.heading_deg - axis)) * d > 0.0
         off = abs(wrap_deg(along - pose.heading_deg)) > self.cfg.heading_tolerance_deg
@@ -323,21 +323,44 @@ class MotionController:
             # room (all the way: the window's arcs from a turn still braking find none).
             if not self._turn_is_free(pose, along, now, self._spin_room):
                 return self._blocked(ins, now, dt, limit, remaining, NO_ROOM_TO_MAKE)
+            status = self._status(ins.id, MotionState.AVOIDING, now, remaining, MAKING_ROOM)
             return self._command(0.0, self._turn_rate(pose.heading_deg, along), dt, status, limit)
+        cap = min(self.cfg.approach_speed_mm_s, limit)
+        choice = self._window_arc(floor, pose, 0.0, facing, cap, dt, now)
+        if choice is None:
+            return self._blocked(ins, now, dt, limit, remaining, NO_ROOM_TO_MAKE)
+        status = self._status(ins.id, MotionState.AVOIDING, now, remaining, MAKING_ROOM)
+        return self._drive_arc(choice, limit, status)
+
+    def _window_arc(
+        self,
+        floor: Floor,
+        pose: PoseEstimate,
+        lane_mm: float,
+        direction: float,
+        cap_mm_s: float,
+        dt: float,
+        now: float,
+    ) -> DwaChoice | None:
+        """The dynamic window's best arc towards ``lane_mm``, at least at creep speed; None
+        if every arc from here meets something, or none does better than standing."""
         choice = self.dwa.choose(
             self.costmap,
             floor,
             (pose.x_mm, pose.y_mm, pose.heading_deg),
             self.speed,
             self.yaw_rate,
-            lane_mm=0.0,
-            direction=facing,
-            max_speed_mm_s=max(min(self.cfg.approach_speed_mm_s, limit), self.cfg.creep_speed_mm_s),
+            lane_mm=lane_mm,
+            direction=direction,
+            max_speed_mm_s=max(cap_mm_s, self.cfg.creep_speed_mm_s),
             dt_s=dt,
             now=now,
         )
         if choice is None or (choice.speed_mm_s < 1.0 and abs(choice.yaw_rate_dps) < 1.0):
-            return self._blocked(ins, now, dt, limit, remaining, NO_ROOM_TO_MAKE)
+            return None
+        return choice
+
+    def _drive_arc(self, choice: DwaChoice, limit: float, status: MotionStatus) -> Command:
         self.speed = min(choice.speed_mm_s, limit)
         self.yaw_rate = choice.yaw_rate_dps
         return Command(self.speed, self.yaw_rate, status)
@@ -531,27 +554,13 @@ class MotionController:
             turn = self._turn_out(ins, floor, pose, lane, direction, now, dt, limit, remaining)
             if turn is not None:
                 return turn
-        choice = self.dwa.choose(
-            self.costmap,
-            floor,
-            (pose.x_mm, pose.y_mm, pose.heading_deg),
-            self.speed,
-            self.yaw_rate,
-            lane_mm=lane,
-            direction=direction,
-            max_speed_mm_s=max(cap, self.cfg.creep_speed_mm_s),
-            dt_s=dt,
-            now=now,
-        )
-        if choice is None or (choice.speed_mm_s < 1.0 and abs(choice.yaw_rate_dps) < 1.0):
-            # Every arc from here meets the obstacle, or none does better than standing: the
-            # window is too small to swing out from a standstill close to a wide obstacle.
+        choice = self._window_arc(floor, pose, lane, direction, cap, dt, now)
+        if choice is None:
+            # The window is too small to swing out from a standstill close to a wide obstacle.
             turn = self._turn_out(ins, floor, pose, lane, direction, now, dt, limit, remaining)
             return turn or self._blocked(ins, now, dt, limit, remaining)
         status = self._status(ins.id, MotionState.AVOIDING, now, remaining, "going around")
-        self.speed = min(choice.speed_mm_s, limit)
-        self.yaw_rate = choice.yaw_rate_dps
-        return Command(self.speed, self.yaw_rate, status)
+        return self._drive_arc(choice, limit, status)
 
     def _turn_out(
         self,
