@@ -52,6 +52,8 @@ class Stand:
         self.car = 2
         self.done: list[str] = []
         """The details of the instructions it finished, in order."""
+        self.asked_of_lift: list[str | None] = []
+        """For each of those, the last thing asked of the elevator when it came."""
 
     async def motion(self) -> None:
         with self.board.subscribe(MOVE_INSTRUCTION) as instructions:
@@ -66,6 +68,8 @@ class Stand:
                     x, y = ins.x_mm, ins.y_mm
                 self.board.publish(CURRENT_STATE, pose_at(self.floor, x, y))
                 self.done.append(ins.detail)
+                request = self.board.latest(ELEVATOR_REQUEST)
+                self.asked_of_lift.append(None if request is None else request.msg.action)
                 self.board.publish(
                     MOTION_STATUS,
                     MotionStatus(instruction_id=ins.id, state=MotionState.DONE, remaining_mm=0.0),
@@ -102,8 +106,10 @@ async def rig():
     await daemon.shutdown()
 
 
-async def run_stand(board: Board, elevator: bool) -> list[asyncio.Task[None]]:
-    stand = Stand(board, elevator)
+async def run_stand(
+    board: Board, elevator: bool, stand: Stand | None = None
+) -> list[asyncio.Task[None]]:
+    stand = stand or Stand(board, elevator)
     return [asyncio.create_task(stand.motion()), asyncio.create_task(stand.lift())]
 
 
@@ -141,6 +147,23 @@ async def test_delivery_to_the_other_floor_and_home(rig) -> None:
     assert drain(statuses) == [OrderStatus.DELIVERED]
     assert board.latest(MOVE_INSTRUCTION).msg.action == "stop"  # home and parked
     assert board.latest(CURRENT_STATE).msg.pose.floor == 2
+    await stop(tasks)
+
+
+async def test_the_car_is_sent_before_the_robot_turns_round_in_it(rig) -> None:
+    """The doors close and the car travels while the robot turns: sent only once it had
+    turned, every ride took the turn's time longer (some 8 s)."""
+    clock, board, daemon, _ = rig
+    stand = Stand(board, elevator=True)
+    tasks = await run_stand(board, elevator=True, stand=stand)
+    await daemon.start()
+    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o1", room="305", drink="tea"))
+    await clock.advance(1.0)
+    board.publish(OPERATOR_EVENT, OperatorEvent(kind="cup_loaded", order_id="o1"))
+    await clock.advance(5.0)
+    asked = dict(zip(stand.done, stand.asked_of_lift, strict=True))
+    assert asked["into the car"] == "call"
+    assert asked["turning round in the car"] == "send"
     await stop(tasks)
 
 

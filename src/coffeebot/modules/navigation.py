@@ -416,6 +416,9 @@ class NavigationModule(Module):
             f"car to floor {here}",
         )
         await self._drive(ctx, ride.enter)
+        # Sent at once: the doors close and the car travels while the robot turns round.
+        ctx.board.publish(ELEVATOR_REQUEST, ElevatorRequest(action="send", floor=there))
+        await self._move(ctx, ride.turn_round)
         await self._elevator_step(
             ctx,
             ElevatorRequest(action="send", floor=there),

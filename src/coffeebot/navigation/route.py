@@ -73,12 +73,14 @@ class ElevatorRide:
     """Ride from ``from_floor`` to ``to_floor``: moves for before the call, in, and out of the
     car, which is released to the building after them (a fleet's robot gives the space in
     front of the car's door and the loading spot back once in the car, and takes the space
-    on the other floor before it comes out)."""
+    on the other floor before it comes out). ``turn_round`` is made while the car closes its
+    doors and travels: it is for no floor in particular (the floors share one frame)."""
 
     from_floor: int
     to_floor: int
     face_doors: Move
     enter: list[Move | Lease]
+    turn_round: Move
     exit: list[Move | Lease]
 
 
@@ -557,12 +559,21 @@ class RoutePlanner:
             to_floor=to_level,
             face_doors=self._turn(here, facing, "facing the elevator doors"),
             # Parked ``car_depth_mm`` past the door line, the body's sweep about the axle
-            # stays in the car: what it holds for the way in is given back before it turns.
+            # stays in the car: what it holds for the way in is given back before it turns,
+            # and the doors may close while it turns (sent before the turn, the car rides
+            # some 8 s shorter: the turn took that long before the doors began to close).
             enter=[
                 self._drive_to(here, here.behind_door(door_here, depth), "into the car"),
                 *given_back,
-                self._turn(here, facing + 180.0, "turning round in the car"),
             ],
+            turn_round=Move(
+                MoveInstruction(
+                    action="turn",
+                    floor=None,
+                    heading_deg=facing + 180.0,
+                    detail="turning round in the car",
+                )
+            ),
             exit=out,
         )
 
