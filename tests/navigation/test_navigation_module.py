@@ -150,11 +150,20 @@ async def test_delivery_to_the_other_floor_and_home(rig) -> None:
     await stop(tasks)
 
 
-async def test_the_car_is_sent_before_the_robot_turns_round_in_it(rig) -> None:
+async def test_the_car_is_sent_before_the_robot_turns_round_in_it(rig, monkeypatch) -> None:
     """The doors close and the car travels while the robot turns: sent only once it had
-    turned, every ride took the turn's time longer (some 8 s)."""
+    turned, every ride took the turn's time longer (some 8 s). Then it stands."""
     clock, board, daemon, _ = rig
     stand = Stand(board, elevator=True)
+    instructed: list[str] = []
+    publish = board.publish
+
+    def spy(topic, msg):
+        if topic is MOVE_INSTRUCTION:
+            instructed.append(msg.detail)
+        return publish(topic, msg)
+
+    monkeypatch.setattr(board, "publish", spy)
     tasks = await run_stand(board, elevator=True, stand=stand)
     await daemon.start()
     board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o1", room="305", drink="tea"))
@@ -164,6 +173,31 @@ async def test_the_car_is_sent_before_the_robot_turns_round_in_it(rig) -> None:
     asked = dict(zip(stand.done, stand.asked_of_lift, strict=True))
     assert asked["into the car"] == "call"
     assert asked["turning round in the car"] == "send"
+    # It stands while it waits for the car and rides: each last move, left in force, was
+    # made again whenever the estimate moved past its tolerance (a 3 degree turn).
+    turn = instructed.index("turning round in the car")
+    assert instructed[turn + 1] == "in the car to floor 3"
+    facing = instructed.index("facing the elevator doors")
+    assert instructed[facing + 1] == "waiting for the car on floor 2"
+    await stop(tasks)
+
+
+async def test_at_the_door_the_robot_stands_until_the_cup_is_taken(rig) -> None:
+    """The move to the door is not left in force: it drove the robot again whenever the
+    estimate moved past the stop tolerance, while a person reached for the cup."""
+    clock, board, daemon, statuses = rig
+    tasks = await run_stand(board, elevator=True)
+    await daemon.start()
+    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o1", room="205", drink="tea"))
+    await clock.advance(1.0)
+    board.publish(OPERATOR_EVENT, OperatorEvent(kind="cup_loaded", order_id="o1"))
+    await clock.advance(5.0)
+    assert drain(statuses)[-1] is OrderStatus.ARRIVED
+    standing = board.latest(MOVE_INSTRUCTION).msg
+    assert (standing.action, standing.detail) == (
+        "stop",
+        "at the door of 205, for the cup to be taken",
+    )
     await stop(tasks)
 
 
@@ -365,6 +399,22 @@ async def test_a_fleet_robot_with_its_next_order_waits_on_the_loading_spot() -> 
     ]
     without = await deliver_in_a_fleet(next_order=False)
     assert without[-3:] == ["to its parking spot", "parked", "parked"]
+
+
+async def test_a_fleet_robot_stands_while_it_waits_for_a_place() -> None:
+    """Waiting for the loading spot another robot holds, it is told to stand: the last move,
+    left in force, turned it again by a few degrees every few seconds of the wait."""
+    clock, board, daemon, stand = fleet_robot_on_its_spot()
+    tasks = [asyncio.create_task(stand.motion())]  # nobody grants a place
+    try:
+        await daemon.start()
+        board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o1", room="205", drink="tea"))
+        await clock.advance(5.0)
+        standing = board.latest(MOVE_INSTRUCTION).msg
+        assert (standing.action, standing.detail) == ("stop", "waiting for the loading spot")
+    finally:
+        await stop(tasks)
+        await daemon.shutdown()
 
 
 async def test_a_fleet_robot_calls_the_car_as_soon_as_it_is_its() -> None:

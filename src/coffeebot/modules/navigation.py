@@ -344,6 +344,7 @@ class NavigationModule(Module):
 
         if not held():
             what = lease.place.replace("_", " ")
+            self._hold_still(ctx, f"waiting for the {what}")
             self._progress(ctx, f"waiting for the {what}: another robot is using it")
             if not await self._wait_for(ctx, held, self.nav.blocked_give_up_s):
                 raise DeliveryAborted(
@@ -403,6 +404,7 @@ class NavigationModule(Module):
         await self._move(ctx, ride.face_doors)
         if self.fleet:
             await self._lease(ctx, Lease("elevator", True))
+        self._hold_still(ctx, f"waiting for the car on floor {here}")
         life = self._life
         if life is not None and not life.final:
             self._report(
@@ -419,6 +421,7 @@ class NavigationModule(Module):
         # Sent at once: the doors close and the car travels while the robot turns round.
         ctx.board.publish(ELEVATOR_REQUEST, ElevatorRequest(action="send", floor=there))
         await self._move(ctx, ride.turn_round)
+        self._hold_still(ctx, f"in the car to floor {there}")
         await self._elevator_step(
             ctx,
             ElevatorRequest(action="send", floor=there),
@@ -473,6 +476,7 @@ class NavigationModule(Module):
             if self.fleet and not (self._on_loading_spot and "loading_spot" in self._holding):
                 # From its parking spot onto the loading spot, which it then holds.
                 await self._drive(ctx, self.planner.loading())
+                self._hold_still(ctx, "on the loading spot, for the cup")
             self._on_loading_spot = False
             self._report(ctx, life.ready_for_cup())
             if not await self._wait_for(
@@ -515,7 +519,16 @@ class NavigationModule(Module):
         detail = f"at the door of {life.room}"
         if status is not None and status.msg.remaining_mm is not None:
             detail += f" ({-status.msg.remaining_mm:+.0f} mm)"
+        self._hold_still(ctx, f"at the door of {life.room}, for the cup to be taken")
         self._report(ctx, life.arrived(detail))
+
+    def _hold_still(self, ctx: ModuleContext, where: str) -> None:
+        """Stand where the last move left the robot for as long as it waits (at a door for
+        the cup to be taken, on the loading spot, for a shared place, for and in the car):
+        the move, left in force, drove or turned it again whenever its estimate moved past
+        the tolerance (a few mm with a hand reaching in; a 3 degree turn every few seconds
+        waiting for the car)."""
+        self._instruct(ctx, MoveInstruction(action="stop", detail=where))
 
     async def _deliver(self, ctx: ModuleContext, dispatch: OrderDispatch) -> None:
         self._handled.add(dispatch.order_id)
@@ -569,7 +582,7 @@ class NavigationModule(Module):
         except DeliveryAborted as exc:
             ctx.log.error("could not return to base: %s", exc)
         where = "on the loading spot, for the next cup" if self._on_loading_spot else "parked"
-        self._instruct(ctx, MoveInstruction(action="stop", detail=where))
+        self._hold_still(ctx, where)
         ctx.board.publish(ROUTE, PlannedRoute(to=self.planner.base.door.room))
 
     def _order_waiting(self, ctx: ModuleContext) -> bool:
