@@ -57,7 +57,7 @@ from coffeebot.floorplan import Floor, segment_distances
 from coffeebot.messages import NOTHING_IN_RANGE, RangeReading, RangeScan, ReadingStatus
 from coffeebot.navigation.others import outline_points
 from coffeebot.perception.collision import narrow_returns, near_end_mm
-from coffeebot.perception.geometry import sensor_origin
+from coffeebot.perception.geometry import sensor_origin, spread_rad
 from coffeebot.perception.walls import segment_ranges, wall_ranges
 
 MAX_MARK_MM = 1500.0
@@ -230,7 +230,7 @@ class LocalCostmap:
         explains marks that outline instead of its arc."""
         self._recentre(floor, x_mm, y_mm)
         narrowed = max(0.0, self.half_fov_deg - heading_error_deg)
-        clear_spread = np.radians(np.linspace(-narrowed, narrowed, self._rays))
+        clear_spread = spread_rad(narrowed, self._rays)
         readings = {r.sensor: r for r in scan.readings}
         rays = self._explaining_rays(readings, x_mm, y_mm, heading_deg)
         walls = self._explained(floor, rays)

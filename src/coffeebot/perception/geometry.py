@@ -5,6 +5,9 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
+from functools import cache
+
+import numpy as np
 
 from coffeebot.config import TofSensorConfig
 from coffeebot.floorplan import Floor, Side
@@ -49,6 +52,29 @@ def valid_distance(reading: RangeReading | None) -> int | None:
     if reading is None or not reading.healthy or reading.status is not ReadingStatus.VALID:
         return None
     return reading.distance_mm
+
+
+@cache
+def _counts(num: int) -> np.ndarray:
+    """0, 1, ..., num - 1 as floats (read only: shared by every call)."""
+    counts = np.arange(num, dtype=float)
+    counts.flags.writeable = False
+    return counts
+
+
+def spread_rad(half_deg: float, num: int) -> np.ndarray:
+    """``np.radians(np.linspace(-half_deg, half_deg, num))``, the same numbers to the bit,
+    without linspace's generality: the same steps (``arange * step + start``, the last set
+    to ``stop``), asked for every scan with a new width."""
+    if num < 2:
+        return np.radians(np.linspace(-half_deg, half_deg, num))
+    delta = half_deg - -half_deg
+    step = delta / (num - 1)
+    # linspace's own path for a zero step (a zero or denormal width) divides first.
+    y = _counts(num) * step if step != 0 else _counts(num) / (num - 1) * delta
+    y += -half_deg
+    y[-1] = half_deg
+    return np.radians(y)
 
 
 def sensor_origin(

@@ -19,7 +19,7 @@ import numpy as np
 from coffeebot.config import TofSensorConfig
 from coffeebot.floorplan import Floor
 from coffeebot.messages import PoseEstimate
-from coffeebot.perception.geometry import sensor_origin, wrap_deg
+from coffeebot.perception.geometry import sensor_origin, spread_rad, wrap_deg
 
 RAYS = 15
 """Rays across the (widened) cone when asking which of them meet a wall."""
@@ -84,7 +84,7 @@ def explained_points(
         sx, sy, look = sensor_origin(pose.x_mm, pose.y_mm, pose.heading_deg, sensor)
         half = sensor.fov_deg / 2.0 + slack_deg
         if half not in spreads:
-            spreads[half] = np.radians(np.linspace(-half, half, RAYS))
+            spreads[half] = spread_rad(half, RAYS)
         origins.append((sx, sy))
         angles.append(math.radians(look) + spreads[half])
         offsets.append(spreads[half])
