@@ -32,7 +32,9 @@ def wall_ranges(
     ``angles`` (n, r), inf where there is none within its ``reach_mm`` (n,). All origins are
     cast in one go, and walls whose bounding box lies beyond every reach not at all: the
     question is asked for every sensor every scan, and few of a floor's walls are that close."""
-    reach = np.broadcast_to(np.asarray(reach_mm, dtype=float), (len(origins),))
+    reach = np.asarray(reach_mm, dtype=float)
+    if reach.shape != (len(origins),):
+        reach = np.broadcast_to(reach, (len(origins),))
     seg = floor.segment_array
     if seg.size and len(origins) and np.isfinite(reach).all():
         box = floor.segment_bounds
@@ -98,9 +100,8 @@ def explained_points(
     points = np.stack(
         [mounts[:, :1] + hit * np.cos(bearing), mounts[:, 1:2] + hit * np.sin(bearing)], axis=-1
     )
-    return {
-        sensor.id: points[k][near[k]] for k, (sensor, _) in enumerate(readings) if near[k].any()
-    }
+    any_near = near.any(axis=1).tolist()
+    return {sensor.id: points[k][near[k]] for k, (sensor, _) in enumerate(readings) if any_near[k]}
 
 
 Explainer = Callable[[Sequence[tuple[TofSensorConfig, float]]], dict[int, np.ndarray]]
