@@ -49,6 +49,10 @@ MODE_RADIUS_MM = 1500.0
 MODE_RADIUS_RAD = math.radians(60.0)
 FIELD_MARGIN_MM = 1000.0
 """The likelihood field reaches this far beyond the plan's walls; beyond, nothing is near."""
+_RAD_TO_DEG = np.array([1.0, 1.0, math.degrees(1.0)])
+_RAD_TO_DEG_COV = np.outer(_RAD_TO_DEG, _RAD_TO_DEG)
+_RAD_TO_DEG_COV.flags.writeable = False
+"""Takes a covariance of (x mm, y mm, heading rad) to one of (x mm, y mm, heading deg)."""
 
 
 def wrap(angle: np.ndarray) -> np.ndarray:
@@ -499,8 +503,7 @@ class ParticlePoseFusion:
         if not self.initialised:
             return np.diag([1e12, 1e12, 180.0**2])
         _, cov = self._mode_estimate()
-        scale = np.array([1.0, 1.0, math.degrees(1.0)])
-        return cov * np.outer(scale, scale)
+        return cov * _RAD_TO_DEG_COV
 
     def sigmas(self) -> tuple[float, float, float]:
         d = np.sqrt(np.maximum(np.diag(self.covariance()), 0.0))
