@@ -80,7 +80,8 @@ def spread_rad(half_deg: float, num: int) -> np.ndarray:
 def sensor_origin(
     x_mm: float, y_mm: float, heading_deg: float, sensor: TofSensorConfig
 ) -> tuple[float, float, float]:
-    """Where a sensor sits in the floor frame and which way it looks, for a robot pose."""
+    """Where a sensor sits in the floor frame and which way it looks, for a robot pose
+    (:func:`sensor_origins` for several, with the same arithmetic)."""
     h = math.radians(heading_deg)
     c, s = math.cos(h), math.sin(h)
     return (
@@ -88,6 +89,23 @@ def sensor_origin(
         y_mm + s * sensor.x_mm + c * sensor.y_mm,
         heading_deg + sensor.yaw_deg,
     )
+
+
+def sensor_origins(
+    x_mm: float, y_mm: float, heading_deg: float, sensors: Iterable[TofSensorConfig]
+) -> list[tuple[float, float, float]]:
+    """:func:`sensor_origin` of each of ``sensors`` (the same arithmetic, the same numbers),
+    the pose's cosine and sine taken once for all of them."""
+    h = math.radians(heading_deg)
+    c, s = math.cos(h), math.sin(h)
+    return [
+        (
+            x_mm + c * sensor.x_mm - s * sensor.y_mm,
+            y_mm + s * sensor.x_mm + c * sensor.y_mm,
+            heading_deg + sensor.yaw_deg,
+        )
+        for sensor in sensors
+    ]
 
 
 @dataclass(frozen=True)
