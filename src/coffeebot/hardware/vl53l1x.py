@@ -22,6 +22,8 @@ DEFAULT_ADDRESS = 0x29
 MODEL_ID = 0xEACC  # 0x010F..0x0110; the ULD header's "0xEEAC" is a documentation error
 IDENTIFICATION = bytes([0xEA, 0xCC, 0x10])
 """0x010F model id, 0x0110 module type, 0x0111 mask revision."""
+WRITE_MESSAGES_KEPT = 64
+"""Distinct write messages a driver keeps for reuse (the cycle's few, the set-up's dozen)."""
 
 # Registers (names from ST's ULD and full API).
 REG_I2C_ADDRESS = 0x0001
@@ -146,6 +148,7 @@ def field_of_view_deg(roi_width: int) -> float:
     share = (roi_width - MIN_ROI) / (SPADS - MIN_ROI)
     return FOV_MIN_ROI_DEG + share * (FOV_FULL_DEG - FOV_MIN_ROI_DEG)
 
+
 # The 91-byte default configuration written to 0x2D..0x87 (ST ULD 1.x / Adafruit values).
 DEFAULT_CONFIGURATION = bytes.fromhex(
     "00 00 00 01 02 00 02 08 00 08 10 01 01 00 00 00"  # 0x2D..0x3C
@@ -257,17 +260,30 @@ class VL53L1X:
         self._sleep = sleep
         self._ready_level = 1  # GPIO level meaning "data ready"; read from 0x30 in init()
         self._mode = DistanceMode.LONG
+        self._writes: dict[tuple[int, int, bytes], i2c_msg] = {}
+        """Write messages by (address, register, data): the same few are sent every cycle
+        (a register's index before a read, the interrupt clear), and the kernel and the
+        bus only read a write message's bytes, so one of each serves every transaction."""
+
+    def _write_msg(self, reg: int, data: bytes = b"") -> i2c_msg:
+        """The message writing ``data`` at ``reg`` (just the index, to read from it)."""
+        key = (self.address, reg, data)
+        msg = self._writes.get(key)
+        if msg is None:
+            msg = i2c_msg.write(self.address, bytes([reg >> 8, reg & 0xFF]) + data)
+            if len(self._writes) < WRITE_MESSAGES_KEPT:
+                self._writes[key] = msg
+        return msg
 
     # --- register access ----------------------------------------------------------------
 
     def read(self, reg: int, length: int) -> bytes:
-        index = i2c_msg.write(self.address, [reg >> 8, reg & 0xFF])
         data = i2c_msg.read(self.address, length)
-        self.bus.i2c_rdwr(index, data)
+        self.bus.i2c_rdwr(self._write_msg(reg), data)
         return bytes(data)
 
     def write(self, reg: int, data: bytes) -> None:
-        self.bus.i2c_rdwr(i2c_msg.write(self.address, bytes([reg >> 8, reg & 0xFF]) + data))
+        self.bus.i2c_rdwr(self._write_msg(reg, bytes(data)))
 
     def read_int(self, reg: int, size: int) -> int:
         return int.from_bytes(self.read(reg, size), "big")

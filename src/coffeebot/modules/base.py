@@ -29,6 +29,7 @@ class ModuleBoard:
         self._module = module
         self._inputs = {t.name for t in module.inputs}
         self._outputs = {t.name for t in module.outputs}
+        self._readable = self._inputs | self._outputs
 
     @property
     def clock(self) -> Clock:
@@ -50,11 +51,11 @@ class ModuleBoard:
         return self._board.subscribe(topic, name=self._module.name)
 
     def latest(self, topic: Topic[M]) -> Envelope[M] | None:
-        self._check(topic, self._inputs | self._outputs, "read")
+        self._check(topic, self._readable, "read")
         return self._board.latest(topic)
 
     def age(self, topic: Topic[M]) -> float | None:
-        self._check(topic, self._inputs | self._outputs, "read")
+        self._check(topic, self._readable, "read")
         return self._board.age(topic)
 
     async def next(self, topic: Topic[M], timeout: float | None = None) -> Envelope[M]:

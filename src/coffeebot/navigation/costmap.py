@@ -57,7 +57,7 @@ from coffeebot.floorplan import Floor, segment_distances
 from coffeebot.messages import NOTHING_IN_RANGE, RangeReading, RangeScan, ReadingStatus
 from coffeebot.navigation.others import outline_points
 from coffeebot.perception.collision import narrow_returns, near_end_mm
-from coffeebot.perception.geometry import sensor_origin
+from coffeebot.perception.geometry import sensor_origins, spread_rad
 from coffeebot.perception.walls import segment_ranges, wall_ranges
 
 MAX_MARK_MM = 1500.0
@@ -230,9 +230,10 @@ class LocalCostmap:
         explains marks that outline instead of its arc."""
         self._recentre(floor, x_mm, y_mm)
         narrowed = max(0.0, self.half_fov_deg - heading_error_deg)
-        clear_spread = np.radians(np.linspace(-narrowed, narrowed, self._rays))
+        clear_spread = spread_rad(narrowed, self._rays)
         readings = {r.sensor: r for r in scan.readings}
-        rays = self._explaining_rays(readings, x_mm, y_mm, heading_deg)
+        placed = sensor_origins(x_mm, y_mm, heading_deg, self.sensors)
+        rays = self._explaining_rays(readings, placed)
         walls = self._explained(floor, rays)
         seen, robot_read = self._robots_seen(robots, rays, walls)
         explained = walls | robot_read
@@ -244,7 +245,7 @@ class LocalCostmap:
         mark_x: list[np.ndarray] = []
         mark_y: list[np.ndarray] = []
         mark_pole: list[np.ndarray] = []
-        for sensor in self.sensors:
+        for sensor, (sx, sy, look) in zip(self.sensors, placed, strict=True):
             reading = readings.get(sensor.id)
             if reading is None or not reading.healthy:
                 continue
@@ -260,7 +261,6 @@ class LocalCostmap:
                 distance = None
             else:
                 continue
-            sx, sy, look = sensor_origin(x_mm, y_mm, heading_deg, sensor)
             free = MAX_MARK_MM if distance is None else min(distance, MAX_MARK_MM) - self.res
             if free > 0:
                 cones.append((sx, sy, look, free))
@@ -304,19 +304,19 @@ class LocalCostmap:
         return xs[within], ys[within]
 
     def _explaining_rays(
-        self, readings: dict[int, RangeReading], x_mm: float, y_mm: float, heading_deg: float
+        self, readings: dict[int, RangeReading], placed: list[tuple[float, float, float]]
     ) -> Rays:
         """The sensors with a valid reading near enough to mark, each one's origin (n, 2),
         the rays of its cone widened by ``wall_heading_tolerance_deg`` (n, r), and how far
-        something may lie along them to explain the reading, ``wall_margin_mm`` beyond it."""
+        something may lie along them to explain the reading, ``wall_margin_mm`` beyond it.
+        ``placed``: where each sensor sits and looks (:func:`sensor_origins`)."""
         ids, origins, angles, reach = [], [], [], []
-        for sensor in self.sensors:
+        for sensor, (sx, sy, look) in zip(self.sensors, placed, strict=True):
             reading = readings.get(sensor.id)
             if reading is None or not reading.healthy or reading.status is not ReadingStatus.VALID:
                 continue
             if reading.distance_mm is None or reading.distance_mm > MAX_MARK_MM:
                 continue
-            sx, sy, look = sensor_origin(x_mm, y_mm, heading_deg, sensor)
             ids.append(sensor.id)
             origins.append((sx, sy))
             angles.append(math.radians(look) + self._explain)

@@ -80,6 +80,9 @@ CLEARANCE_SMOOTHING = 0.2
 PATH_STEP_MM = 25.0
 PATH_REACH_MM = 2500.0
 """Along a curved path the body is swept this far, in these steps, to find what it meets."""
+_TRAVEL = np.arange(0.0, PATH_REACH_MM, PATH_STEP_MM)[:, None]
+_TRAVEL.flags.writeable = False
+"""The axle's travel at each step of the sweep (S, 1)."""
 MIN_CURVATURE_PER_MM = 1e-5
 """Flatter than this (a 100 m radius) the path is straight ahead."""
 MIN_ARC_SPEED_MM_S = 50.0
@@ -273,7 +276,7 @@ class CollisionMonitor:
         # Along an arc the body turns about its driven axle: sweep it in steps of the axle's
         # travel and find the first pose whose rectangle (widened by the margin) holds a point.
         k, a = curvature_per_mm, self.axle_x_mm
-        travel = np.arange(0.0, PATH_REACH_MM, PATH_STEP_MM)[:, None]  # (S, 1)
+        travel = _TRAVEL  # (S, 1)
         turn = k * travel
         cos, sin = np.cos(turn), np.sin(turn)
         cx = a + sin / k - a * cos
@@ -282,8 +285,8 @@ class CollisionMonitor:
         along = cos * dx + sin * dy
         across = -sin * dx + cos * dy
         hit = (np.abs(along) <= self.front_mm) & (np.abs(across) <= half)
-        steps = np.flatnonzero(hit.any(axis=1))
-        return float(travel[steps[0], 0]) if len(steps) else None
+        steps = hit.any(axis=1)
+        return float(travel[steps.argmax(), 0]) if steps.any() else None  # the first hit
 
     def beyond_front_sweep(self, sensor: TofSensorConfig, distance: float) -> bool:
         """Whether every point of a front reading's arc is out of reach of the front corners

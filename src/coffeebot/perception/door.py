@@ -127,7 +127,10 @@ class _Track:
         recent = np.fromiter(islice(self.distances, start, None), float, count=window)
         sign = 1.0 if rising else -1.0
         half = window // 2
-        if sign * (recent[half:].mean() - recent[:half].mean()) < jump_mm:
+        # The halves' means as ndarray.mean computes them (a sum, then one division), without
+        # its per-call overhead: this runs for every side sensor every scan.
+        mean_after = np.add.reduce(recent[half:]) / (window - half)
+        if sign * (mean_after - np.add.reduce(recent[:half]) / half) < jump_mm:
             return None
         cumulative = np.cumsum(recent)
         splits = np.arange(1, window)

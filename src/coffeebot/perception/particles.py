@@ -49,6 +49,10 @@ MODE_RADIUS_MM = 1500.0
 MODE_RADIUS_RAD = math.radians(60.0)
 FIELD_MARGIN_MM = 1000.0
 """The likelihood field reaches this far beyond the plan's walls; beyond, nothing is near."""
+_RAD_TO_DEG = np.array([1.0, 1.0, math.degrees(1.0)])
+_RAD_TO_DEG_COV = np.outer(_RAD_TO_DEG, _RAD_TO_DEG)
+_RAD_TO_DEG_COV.flags.writeable = False
+"""Takes a covariance of (x mm, y mm, heading rad) to one of (x mm, y mm, heading deg)."""
 
 
 def wrap(angle: np.ndarray) -> np.ndarray:
@@ -106,6 +110,8 @@ class ParticlePoseFusion:
         """Particles injected by recovery since the start (for benchmarks and logs)."""
         self._estimate: tuple[np.ndarray, np.ndarray] | None = None
         self._weights: np.ndarray | None = None
+        self._ess: tuple[np.ndarray, float] | None = None
+        """The effective sample size and the weights it is of (:meth:`_sample_size`)."""
 
     # --- the floor ------------------------------------------------------------------------
 
@@ -281,7 +287,7 @@ class ParticlePoseFusion:
             source, value = fit
             self.monitors[source].update(value)
         inject = max(m.injection_probability for m in self.monitors.values())
-        ess = effective_sample_size(self.weights)
+        ess = self._sample_size()
         if inject > 0 or ess < self.cfg.resample_ess_fraction * len(self.particles):
             self._resample(inject)
 
@@ -499,8 +505,7 @@ class ParticlePoseFusion:
         if not self.initialised:
             return np.diag([1e12, 1e12, 180.0**2])
         _, cov = self._mode_estimate()
-        scale = np.array([1.0, 1.0, math.degrees(1.0)])
-        return cov * np.outer(scale, scale)
+        return cov * _RAD_TO_DEG_COV
 
     def sigmas(self) -> tuple[float, float, float]:
         d = np.sqrt(np.maximum(np.diag(self.covariance()), 0.0))
@@ -509,7 +514,16 @@ class ParticlePoseFusion:
     def summary(self) -> ParticleSummary:
         if not self.initialised:
             return ParticleSummary(0, 0.0)
-        return ParticleSummary(len(self.particles), effective_sample_size(self.weights))
+        return ParticleSummary(len(self.particles), self._sample_size())
+
+    def _sample_size(self) -> float:
+        """The effective sample size of :attr:`weights`, computed once per set of weights:
+        every published pose asks for it, and the weights change only with a measurement
+        (a new array each time, never changed in place)."""
+        weights = self.weights
+        if self._ess is None or self._ess[0] is not weights:
+            self._ess = (weights, effective_sample_size(weights))
+        return self._ess[1]
 
     def cloud(self, points: int) -> np.ndarray | None:
         """Up to ``points`` particles drawn by weight, moved by the pending odometry:

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Callable
 
 from coffeebot.config import MotorConfig, RobotConfig, StateConfig
 from coffeebot.floorplan import FloorPlan
@@ -184,15 +183,22 @@ class StateEstimator:
         if update.order_id == self.order_id:
             self.delivery_status = update
 
-    def _average(self, per_step: Callable[[OdometryStep], float]) -> float:
-        """Rate of ``per_step`` over the recent odometry window."""
-        span = sum(s.dt_s for s in self._recent)
-        return sum(per_step(s) for s in self._recent) / span if span > 0 else 0.0
+    def _rates(self) -> tuple[float, float]:
+        """Speed (mm/s) and yaw rate (deg/s) over the recent odometry window: each step's
+        distance and turn summed in order, over the window's span summed once."""
+        recent = self._recent
+        span = sum(s.dt_s for s in recent)
+        if not span > 0:
+            return 0.0, 0.0
+        distance = sum(s.distance_mm for s in recent)
+        turned = sum(s.heading_change_deg for s in recent)
+        return distance / span, turned / span
 
     def pose(self) -> PoseEstimate:
         x, y, heading = self.fusion.pose()
         cov = self.fusion.covariance()
         summary = self.fusion.summary()
+        speed, yaw_rate = self._rates()
         return PoseEstimate(
             x_mm=x,
             y_mm=y,
@@ -202,8 +208,8 @@ class StateEstimator:
             sigma_y_mm=math.sqrt(max(cov[1, 1], 0.0)),
             sigma_heading_deg=math.sqrt(max(cov[2, 2], 0.0)),
             cov_xy_mm2=float(cov[0, 1]),
-            speed_mm_s=self._average(lambda s: s.distance_mm),
-            yaw_rate_dps=self._average(lambda s: s.heading_change_deg),
+            speed_mm_s=speed,
+            yaw_rate_dps=yaw_rate,
             initialised=self.fusion.initialised,
             particles=None if summary is None else summary.count,
             effective_sample_size=None if summary is None else summary.effective_sample_size,

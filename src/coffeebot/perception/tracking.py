@@ -29,6 +29,9 @@ from scipy.optimize import linear_sum_assignment
 from coffeebot.config import TofSensorConfig, TrackingConfig
 from coffeebot.messages import RangeScan, ReadingStatus
 
+TRANSITIONS_KEPT = 16
+"""Step lengths whose prediction matrices a tracker keeps (the scan period's few values)."""
+
 
 @dataclass(frozen=True)
 class Sighting:
@@ -129,6 +132,8 @@ class ReturnTracker:
         self.lost: list[LostMover] = []
         self._next_id = 1
         self._last_t: float | None = None
+        self._transitions: dict[tuple[float, float], tuple[np.ndarray, np.ndarray]] = {}
+        """:meth:`_transition`'s arrays by (step length, acceleration variance)."""
 
     def sightings(self, scan: RangeScan, skip: Collection[int] = ()) -> list[Sighting]:
         """Each healthy valid reading within ``max_range_mm`` and ``max_sigma_mm`` as a point
@@ -208,12 +213,27 @@ class ReturnTracker:
         )
 
     def _predict(self, track: Track, dt: float) -> None:
-        f = np.eye(4)
-        f[0, 2] = f[1, 3] = dt
-        q = self.cfg.accel_sigma_mm_s2**2
-        g = np.array([[dt * dt / 2, 0], [0, dt * dt / 2], [dt, 0], [0, dt]])
+        f, noise = self._transition(dt)
         track.state = f @ track.state
-        track.covariance = f @ track.covariance @ f.T + g @ (q * np.eye(2)) @ g.T
+        track.covariance = f @ track.covariance @ f.T + noise
+
+    def _transition(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """The constant-velocity step over ``dt`` and the process noise it adds, kept for
+        the step lengths seen last: every track is predicted every scan, and the scan period
+        takes a handful of distinct values (the same arrays, built once each)."""
+        q = self.cfg.accel_sigma_mm_s2**2
+        cached = self._transitions.get((dt, q))
+        if cached is None:
+            f = np.eye(4)
+            f[0, 2] = f[1, 3] = dt
+            g = np.array([[dt * dt / 2, 0], [0, dt * dt / 2], [dt, 0], [0, dt]])
+            cached = (f, g @ (q * np.eye(2)) @ g.T)
+            for array in cached:
+                array.flags.writeable = False
+            if len(self._transitions) >= TRANSITIONS_KEPT:
+                self._transitions.clear()
+            self._transitions[dt, q] = cached
+        return cached
 
     def _associate(self, sightings: list[Sighting]) -> list[tuple[int, int]]:
         """Track-sighting pairs within the gate, the best overall (Hungarian)."""

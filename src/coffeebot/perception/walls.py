@@ -19,7 +19,7 @@ import numpy as np
 from coffeebot.config import TofSensorConfig
 from coffeebot.floorplan import Floor
 from coffeebot.messages import PoseEstimate
-from coffeebot.perception.geometry import sensor_origin, wrap_deg
+from coffeebot.perception.geometry import sensor_origins, spread_rad, wrap_deg
 
 RAYS = 15
 """Rays across the (widened) cone when asking which of them meet a wall."""
@@ -32,7 +32,9 @@ def wall_ranges(
     ``angles`` (n, r), inf where there is none within its ``reach_mm`` (n,). All origins are
     cast in one go, and walls whose bounding box lies beyond every reach not at all: the
     question is asked for every sensor every scan, and few of a floor's walls are that close."""
-    reach = np.broadcast_to(np.asarray(reach_mm, dtype=float), (len(origins),))
+    reach = np.asarray(reach_mm, dtype=float)
+    if reach.shape != (len(origins),):
+        reach = np.broadcast_to(reach, (len(origins),))
     seg = floor.segment_array
     if seg.size and len(origins) and np.isfinite(reach).all():
         box = floor.segment_bounds
@@ -80,11 +82,11 @@ def explained_points(
         return {}
     spreads: dict[float, np.ndarray] = {}
     origins, angles, offsets = [], [], []
-    for sensor, _ in readings:
-        sx, sy, look = sensor_origin(pose.x_mm, pose.y_mm, pose.heading_deg, sensor)
+    placed = sensor_origins(pose.x_mm, pose.y_mm, pose.heading_deg, [s for s, _ in readings])
+    for (sensor, _), (sx, sy, look) in zip(readings, placed, strict=True):
         half = sensor.fov_deg / 2.0 + slack_deg
         if half not in spreads:
-            spreads[half] = np.radians(np.linspace(-half, half, RAYS))
+            spreads[half] = spread_rad(half, RAYS)
         origins.append((sx, sy))
         angles.append(math.radians(look) + spreads[half])
         offsets.append(spreads[half])
@@ -95,12 +97,11 @@ def explained_points(
     mounts = np.array([(s.x_mm, s.y_mm, s.yaw_deg) for s, _ in readings])
     bearing = np.radians(mounts[:, 2:]) + np.array(offsets)
     hit = np.where(near, ranges, 0.0)
-    points = np.stack(
-        [mounts[:, :1] + hit * np.cos(bearing), mounts[:, 1:2] + hit * np.sin(bearing)], axis=-1
-    )
-    return {
-        sensor.id: points[k][near[k]] for k, (sensor, _) in enumerate(readings) if near[k].any()
-    }
+    points = np.empty((*hit.shape, 2))
+    points[..., 0] = mounts[:, :1] + hit * np.cos(bearing)
+    points[..., 1] = mounts[:, 1:2] + hit * np.sin(bearing)
+    any_near = near.any(axis=1).tolist()
+    return {sensor.id: points[k][near[k]] for k, (sensor, _) in enumerate(readings) if any_near[k]}
 
 
 Explainer = Callable[[Sequence[tuple[TofSensorConfig, float]]], dict[int, np.ndarray]]
