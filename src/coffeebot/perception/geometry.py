@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
-from functools import cache
 
 import numpy as np
 
@@ -54,48 +53,23 @@ def valid_distance(reading: RangeReading | None) -> int | None:
     return reading.distance_mm
 
 
-@cache
-def _counts(num: int) -> np.ndarray:
-    """0, 1, ..., num - 1 as floats (read only: shared by every call)."""
-    counts = np.arange(num, dtype=float)
-    counts.flags.writeable = False
-    return counts
-
-
 def spread_rad(half_deg: float, num: int) -> np.ndarray:
-    """``np.radians(np.linspace(-half_deg, half_deg, num))``, the same numbers to the bit,
-    without linspace's generality: the same steps (``arange * step + start``, the last set
-    to ``stop``), asked for every scan with a new width."""
-    if num < 2:
-        return np.radians(np.linspace(-half_deg, half_deg, num))
-    delta = half_deg - -half_deg
-    step = delta / (num - 1)
-    # linspace's own path for a zero step (a zero or denormal width) divides first.
-    y = _counts(num) * step if step != 0 else _counts(num) / (num - 1) * delta
-    y += -half_deg
-    y[-1] = half_deg
-    return np.radians(y)
+    """``num`` ray directions across a cone of ``half_deg`` either side of its axis."""
+    return np.radians(np.linspace(-half_deg, half_deg, num))
 
 
 def sensor_origin(
     x_mm: float, y_mm: float, heading_deg: float, sensor: TofSensorConfig
 ) -> tuple[float, float, float]:
-    """Where a sensor sits in the floor frame and which way it looks, for a robot pose
-    (:func:`sensor_origins` for several, with the same arithmetic)."""
-    h = math.radians(heading_deg)
-    c, s = math.cos(h), math.sin(h)
-    return (
-        x_mm + c * sensor.x_mm - s * sensor.y_mm,
-        y_mm + s * sensor.x_mm + c * sensor.y_mm,
-        heading_deg + sensor.yaw_deg,
-    )
+    """Where a sensor sits in the floor frame and which way it looks, for a robot pose."""
+    return sensor_origins(x_mm, y_mm, heading_deg, (sensor,))[0]
 
 
 def sensor_origins(
     x_mm: float, y_mm: float, heading_deg: float, sensors: Iterable[TofSensorConfig]
 ) -> list[tuple[float, float, float]]:
-    """:func:`sensor_origin` of each of ``sensors`` (the same arithmetic, the same numbers),
-    the pose's cosine and sine taken once for all of them."""
+    """:func:`sensor_origin` of each of ``sensors``, the pose's cosine and sine taken once
+    for all of them."""
     h = math.radians(heading_deg)
     c, s = math.cos(h), math.sin(h)
     return [
