@@ -120,6 +120,14 @@ def drain(statuses) -> list[OrderStatus]:
     return out
 
 
+async def dispatch_and_load(clock: ManualClock, board: Board, room: str) -> None:
+    """Order o1 for ``room`` dispatched, its cup loaded a second later."""
+    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o1", room=room, drink="tea"))
+    await clock.advance(1.0)
+    board.publish(OPERATOR_EVENT, OperatorEvent(kind="cup_loaded", order_id="o1"))
+    await clock.advance(5.0)
+
+
 async def stop(tasks: list[asyncio.Task[None]]) -> None:
     for task in tasks:
         task.cancel()
@@ -131,10 +139,7 @@ async def test_delivery_to_the_other_floor_and_home(rig) -> None:
     clock, board, daemon, statuses = rig
     tasks = await run_stand(board, elevator=True)
     await daemon.start()
-    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o1", room="305", drink="tea"))
-    await clock.advance(1.0)
-    board.publish(OPERATOR_EVENT, OperatorEvent(kind="cup_loaded", order_id="o1"))
-    await clock.advance(5.0)
+    await dispatch_and_load(clock, board, "305")
     assert drain(statuses) == [
         OrderStatus.PREPARING,  # ready in the tea room
         OrderStatus.ON_THE_WAY,
@@ -166,10 +171,7 @@ async def test_the_car_is_sent_before_the_robot_turns_round_in_it(rig, monkeypat
     monkeypatch.setattr(board, "publish", spy)
     tasks = await run_stand(board, elevator=True, stand=stand)
     await daemon.start()
-    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o1", room="305", drink="tea"))
-    await clock.advance(1.0)
-    board.publish(OPERATOR_EVENT, OperatorEvent(kind="cup_loaded", order_id="o1"))
-    await clock.advance(5.0)
+    await dispatch_and_load(clock, board, "305")
     asked = dict(zip(stand.done, stand.asked_of_lift, strict=True))
     assert asked["into the car"] == "call"
     assert asked["turning round in the car"] == "send"
@@ -188,10 +190,7 @@ async def test_at_the_door_the_robot_stands_until_the_cup_is_taken(rig) -> None:
     clock, board, daemon, statuses = rig
     tasks = await run_stand(board, elevator=True)
     await daemon.start()
-    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o1", room="205", drink="tea"))
-    await clock.advance(1.0)
-    board.publish(OPERATOR_EVENT, OperatorEvent(kind="cup_loaded", order_id="o1"))
-    await clock.advance(5.0)
+    await dispatch_and_load(clock, board, "205")
     assert drain(statuses)[-1] is OrderStatus.ARRIVED
     standing = board.latest(MOVE_INSTRUCTION).msg
     assert (standing.action, standing.detail) == (
@@ -354,14 +353,6 @@ def fleet_robot_on_its_spot() -> tuple[ManualClock, Board, Daemon, Stand]:
     spot = PLAN.floor(2).parking[0]
     board.publish(CURRENT_STATE, pose_at(2, spot.x_mm, spot.y_mm, spot.heading_deg))
     return clock, board, Daemon(board, [NavigationModule(FLEET, PLAN)]), Stand(board, True)
-
-
-async def dispatch_and_load(clock: ManualClock, board: Board, room: str) -> None:
-    """Order o1 for ``room`` dispatched, its cup loaded a second later."""
-    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o1", room=room, drink="tea"))
-    await clock.advance(1.0)
-    board.publish(OPERATOR_EVENT, OperatorEvent(kind="cup_loaded", order_id="o1"))
-    await clock.advance(5.0)
 
 
 async def deliver_in_a_fleet(next_order: bool) -> list[str]:
