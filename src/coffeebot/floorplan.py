@@ -25,6 +25,7 @@ from pydantic import (
     BaseModel,
     ConfigDict,
     Field,
+    PrivateAttr,
     Strict,
     StrictFloat,
     StrictInt,
@@ -67,8 +68,12 @@ class _Model(BaseModel):
 
 
 class Hallway(_Model):
-    """The main hallway of a floor: a straight axis and a width."""
+    """One straight hallway segment: an axis from ``start`` to ``end`` and a width. Its own
+    frame: ``s`` along the axis from ``start``, ``d`` across it, left positive looking from
+    start to end. Where hallways meet (an L, a T, a width change) is found from their axes
+    (:func:`junctions`)."""
 
+    id: str = Field(min_length=1)
     start: tuple[Coordinate, Coordinate]
     end: tuple[Coordinate, Coordinate]
     width_mm: Size = 1700.0
@@ -84,6 +89,42 @@ class Hallway(_Model):
         """Direction of travel from start to end, degrees CCW from +x."""
         return math.degrees(math.atan2(self.end[1] - self.start[1], self.end[0] - self.start[0]))
 
+    @cached_property
+    def _axis(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Origin, unit direction and unit left normal of the axis."""
+        origin = np.array(self.start, dtype=float)
+        direction = np.array(self.end, dtype=float) - origin
+        direction /= np.linalg.norm(direction)
+        return origin, direction, np.array([-direction[1], direction[0]])
+
+    @cached_property
+    def _axis_floats(self) -> tuple[float, float, float, float, float, float]:
+        """:attr:`_axis` as plain floats: origin x, y, direction x, y, normal x, y."""
+        origin, u, n = self._axis
+        return (
+            float(origin[0]),
+            float(origin[1]),
+            float(u[0]),
+            float(u[1]),
+            float(n[0]),
+            float(n[1]),
+        )
+
+    def to_local(self, x_mm: float, y_mm: float) -> tuple[float, float]:
+        """Floor-frame point to (s along the axis, d lateral, left positive)."""
+        # In scalars, the same operations as the arrays' (a difference, then a two-term dot
+        # product summed in order) and so the same result to the bit, at a fraction of the
+        # cost: the door detector and the world ask this many times a scan.
+        ox, oy, ux, uy, nx, ny = self._axis_floats
+        rx, ry = x_mm - ox, y_mm - oy
+        return float(rx * ux + ry * uy), float(rx * nx + ry * ny)
+
+    def from_local(self, s_mm: float, d_mm: float) -> tuple[float, float]:
+        """(s, d) in this hallway's frame to a floor-frame point."""
+        origin, u, n = self._axis
+        p = origin + s_mm * u + d_mm * n
+        return float(p[0]), float(p[1])
+
 
 class Door(_Model):
     """A door in a hallway wall, recessed ``recess_mm`` behind the wall line."""
@@ -97,6 +138,7 @@ class Door(_Model):
     height_mm: Size = 2100.0
     kind: Literal["office", "elevator", "tea_room", "other"] = "office"
     open: bool = False
+    hallway: str | None = Field(None, description="the hallway's id (a floor of one: none)")
 
     @model_validator(mode="before")
     @classmethod
@@ -120,10 +162,18 @@ class Opening(_Model):
     depth_mm: Size = Field(3000.0, description="how far its side walls run")
     end: Literal["open", "wall"] = "open"
     name: str = ""
+    hallway: str | None = Field(None, description="the hallway's id (a floor of one: none)")
 
     @property
     def span(self) -> tuple[float, float]:
         return (self.at_mm - self.width_mm / 2, self.at_mm + self.width_mm / 2)
+
+
+class Junction(Opening):
+    """Where another hallway meets this one from the side: the gap in this one's wall that
+    the other's walls run from. Found from the hallways' axes, never written in a plan."""
+
+    joins: str
 
 
 class Wall(_Model):
@@ -183,6 +233,7 @@ class AngleZone(_Model):
     id: str
     from_mm: Coordinate
     to_mm: Coordinate
+    hallway: str | None = Field(None, description="the hallway's id (a floor of one: none)")
 
     @model_validator(mode="after")
     def _ordered(self) -> AngleZone:
@@ -230,11 +281,43 @@ def segment_distances(
     return np.hypot(px + t * ex - x, py + t * ey - y)
 
 
+JUNCTION_TOLERANCE_MM = 10.0
+"""How near a hallway's end must lie to another's axis for the two to meet there."""
+
+
+class Meeting(NamedTuple):
+    """Where ``joining`` ends on ``through``'s axis, ``s_mm`` along it: from the side
+    (``side``, an L or a T: a gap in ``through``'s wall), or straight on (``side`` None: the
+    hallway goes on at another width). At an L, the hallway listed first runs through."""
+
+    through: Hallway
+    joining: Hallway
+    joining_end: Literal["start", "end"]
+    s_mm: float
+    side: Side | None
+
+
+class Extent(NamedTuple):
+    """How far a hallway's walls run in its own frame, and which of its ends are open."""
+
+    lo_mm: float
+    hi_mm: float
+    start_open: bool
+    end_open: bool
+
+
 class Floor(_Model):
+    """One floor: its hallways, the doors, openings and angle zones along them, free-form
+    walls, anchors, parking spots and cameras.
+
+    The along-hallway questions (``to_hallway``, ``features``, ``nearest_door``...) are asked
+    of one hallway, :attr:`hallway`: the first listed, or the one :meth:`view` names. A view
+    shares the floor's walls; a floor of one hallway is its own only view."""
+
     level: StrictInt = Field(ge=-100, le=1000)
     name: str = ""
     wall_height_mm: Size = 2700.0
-    hallway: Hallway
+    hallways: list[Hallway] = Field(min_length=1)
     doors: list[Door] = []
     openings: list[Opening] = []
     walls: list[Wall] = []
@@ -243,57 +326,187 @@ class Floor(_Model):
     parking: list[ParkingSpot] = []
     """A fleet's robots' places to wait, one each (in the tea room's floor)."""
     cameras: list[Camera] = []
+    _focus: int = PrivateAttr(0)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _hallway_is_now_a_list(cls, data: Any) -> Any:
+        if isinstance(data, dict) and "hallway" in data:
+            raise ValueError(
+                "[floors.hallway] is now [[floors.hallways]] with an id (a floor may have "
+                'several): write [[floors.hallways]] and id = "main" above its start'
+            )
+        return data
+
+    # --- which hallway ---------------------------------------------------------------------
+
+    @property
+    def hallway(self) -> Hallway:
+        """The hallway this floor (or view of it) answers along-hallway questions for."""
+        return self.hallways[self._focus]
+
+    def view(self, hallway_id: str | None) -> Floor:
+        """This floor with ``hallway_id`` as its :attr:`hallway` (None: the first)."""
+        if hallway_id is None:
+            return self._views[self.hallways[0].id]
+        try:
+            return self._views[hallway_id]
+        except KeyError:
+            raise KeyError(f"floor {self.level} has no hallway {hallway_id!r}") from None
+
+    @cached_property
+    def _views(self) -> dict[str, Floor]:
+        # Computed once, before the copies, so every view shares them.
+        self.segment_array, self.segment_bounds, self.junctions, self.extents  # noqa: B018
+        views = {}
+        for index, hallway in enumerate(self.hallways):
+            if index == self._focus:
+                views[hallway.id] = self
+                continue
+            view = self.model_copy()
+            view._focus = index
+            views[hallway.id] = view
+        return views
+
+    def view_near(self, x_mm: float, y_mm: float) -> Floor:
+        """The view of the hallway a floor-frame point stands in, or is nearest to (from a
+        room, the hallway its door opens on); where hallways meet, the nearer axis."""
+
+        def outside(hallway: Hallway) -> tuple[float, float]:
+            lo, hi, _, _ = self.extents[hallway.id]
+            s, d = hallway.to_local(x_mm, y_mm)
+            beyond = max(0.0, lo - s, s - hi) + max(0.0, abs(d) - hallway.width_mm / 2)
+            return beyond, abs(d)
+
+        if len(self.hallways) == 1:
+            return self
+        return self.view(min(self.hallways, key=outside).id)
+
+    def view_of(self, feature: Door | Opening | AngleZone) -> Floor:
+        """The view of the hallway a door, opening or angle zone lies along."""
+        return self.view(self.hallway_of(feature).id)
+
+    def hallway_of(self, feature: Door | Opening | AngleZone) -> Hallway:
+        """The hallway a door, opening or angle zone lies along."""
+        if feature.hallway is None:
+            return self.hallways[0]
+        return next(h for h in self.hallways if h.id == feature.hallway)
+
+    def _lies_along(self, feature: Door | Opening | AngleZone, hallway: Hallway) -> bool:
+        return (feature.hallway or self.hallways[0].id) == hallway.id
 
     # --- hallway frame ---------------------------------------------------------------------
 
-    @cached_property
-    def _axis(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Origin, unit direction and unit left normal of the hallway axis."""
-        origin = np.array(self.hallway.start, dtype=float)
-        direction = np.array(self.hallway.end, dtype=float) - origin
-        direction /= np.linalg.norm(direction)
-        return origin, direction, np.array([-direction[1], direction[0]])
-
-    @cached_property
-    def _axis_floats(self) -> tuple[float, float, float, float, float, float]:
-        """:attr:`_axis` as plain floats: origin x, y, direction x, y, normal x, y."""
-        origin, u, n = self._axis
-        return (
-            float(origin[0]),
-            float(origin[1]),
-            float(u[0]),
-            float(u[1]),
-            float(n[0]),
-            float(n[1]),
-        )
-
     def to_hallway(self, x_mm: float, y_mm: float) -> tuple[float, float]:
-        """Floor-frame point to (s along the axis, d lateral, left positive)."""
-        # In scalars, the same operations as the arrays' (a difference, then a two-term dot
-        # product summed in order) and so the same result to the bit, at a fraction of the
-        # cost: the door detector and the world ask this many times a scan.
-        ox, oy, ux, uy, nx, ny = self._axis_floats
-        rx, ry = x_mm - ox, y_mm - oy
-        return float(rx * ux + ry * uy), float(rx * nx + ry * ny)
+        """Floor-frame point to (s along :attr:`hallway`'s axis, d lateral, left positive)."""
+        return self.hallway.to_local(x_mm, y_mm)
 
     def from_hallway(self, s_mm: float, d_mm: float) -> tuple[float, float]:
-        """(s, d) in the hallway frame to a floor-frame point."""
-        origin, u, n = self._axis
-        p = origin + s_mm * u + d_mm * n
-        return float(p[0]), float(p[1])
+        """(s, d) in :attr:`hallway`'s frame to a floor-frame point."""
+        return self.hallway.from_local(s_mm, d_mm)
 
     def behind_door(self, door: Door, depth_mm: float) -> tuple[float, float]:
-        """The floor-frame point ``depth_mm`` behind the hallway's wall line, through the
+        """The floor-frame point ``depth_mm`` behind its hallway's wall line, through the
         middle of ``door`` (the recess's leaf at ``door.recess_mm``; inside the room beyond)."""
+        hallway = self.hallway_of(door)
         sign = 1.0 if door.side == "left" else -1.0
-        return self.from_hallway(door.at_mm, sign * (self.hallway.width_mm / 2 + depth_mm))
+        return hallway.from_local(door.at_mm, sign * (hallway.width_mm / 2 + depth_mm))
+
+    # --- where hallways meet ---------------------------------------------------------------
+
+    @cached_property
+    def meetings(self) -> tuple[Meeting, ...]:
+        """Every place where one hallway's end lies on another's axis."""
+        found = []
+        for j_index, joining in enumerate(self.hallways):
+            for end, point, other in (
+                ("start", joining.start, joining.end),
+                ("end", joining.end, joining.start),
+            ):
+                for h_index, through in enumerate(self.hallways):
+                    if through is joining:
+                        continue
+                    s, d = through.to_local(*point)
+                    tol = JUNCTION_TOLERANCE_MM
+                    if abs(d) > tol or not -tol <= s <= through.length_mm + tol:
+                        continue
+                    at_an_end = s <= tol or s >= through.length_mm - tol
+                    if at_an_end and h_index > j_index and self._ends_meet(joining, through):
+                        continue  # an L or a width change: the one listed first runs through
+                    d_other = through.to_local(*other)[1]
+                    side: Side | None = None
+                    if abs(d_other) > tol:
+                        side = "left" if d_other > 0 else "right"
+                    found.append(Meeting(through, joining, end, s, side))  # type: ignore[arg-type]
+        return tuple(found)
+
+    @staticmethod
+    def _ends_meet(a: Hallway, b: Hallway) -> bool:
+        """Whether an end of ``a`` and an end of ``b`` are one point."""
+        return any(
+            math.dist(p, q) <= JUNCTION_TOLERANCE_MM
+            for p in (a.start, a.end)
+            for q in (b.start, b.end)
+        )
+
+    @cached_property
+    def extents(self) -> dict[str, Extent]:
+        """Each hallway's walls' run in its own frame: shortened where it ends on another's
+        wall line, lengthened over the corner where another ends on its end."""
+        found = {}
+        for hallway in self.hallways:
+            lo, hi = 0.0, hallway.length_mm
+            start_open, end_open = not hallway.start_closed, not hallway.end_closed
+            for meeting in self.meetings:
+                if meeting.joining is hallway:
+                    step = 0.0 if meeting.side is None else meeting.through.width_mm / 2
+                    if meeting.joining_end == "start":
+                        lo, start_open = step, True
+                    else:
+                        hi, end_open = hallway.length_mm - step, True
+                elif meeting.through is hallway:
+                    at_start = meeting.s_mm <= JUNCTION_TOLERANCE_MM
+                    at_end = meeting.s_mm >= hallway.length_mm - JUNCTION_TOLERANCE_MM
+                    if meeting.side is None:
+                        start_open, end_open = start_open or at_start, end_open or at_end
+                    elif at_start:
+                        lo = -meeting.joining.width_mm / 2
+                    elif at_end:
+                        hi = hallway.length_mm + meeting.joining.width_mm / 2
+            found[hallway.id] = Extent(lo, hi, start_open, end_open)
+        return found
+
+    @cached_property
+    def junctions(self) -> tuple[Junction, ...]:
+        """The gaps other hallways leave in a hallway's walls, as openings of it."""
+        return tuple(
+            Junction(
+                id=m.joining.id,
+                side=m.side,
+                at_mm=m.s_mm,
+                width_mm=m.joining.width_mm,
+                depth_mm=m.joining.length_mm,
+                name=f"hallway {m.joining.id}",
+                hallway=m.through.id,
+                joins=m.joining.id,
+            )
+            for m in self.meetings
+            if m.side is not None
+        )
 
     # --- queries ---------------------------------------------------------------------------
 
     def features(self, side: Side | None = None) -> list[Door | Opening]:
-        """Doors and openings, optionally on one side, ordered along the hallway."""
-        items: list[Door | Opening] = [*self.doors, *self.openings]
-        return sorted((f for f in items if side in (None, f.side)), key=lambda f: f.at_mm)
+        """Doors, openings and junctions along :attr:`hallway`, optionally on one side,
+        ordered along it."""
+        return self._features_along(self.hallway, side)
+
+    def _features_along(self, hallway: Hallway, side: Side | None) -> list[Door | Opening]:
+        items: list[Door | Opening] = [*self.doors, *self.openings, *self.junctions]
+        return sorted(
+            (f for f in items if side in (None, f.side) and self._lies_along(f, hallway)),
+            key=lambda f: f.at_mm,
+        )
 
     def feature_at(self, s_mm: float, side: Side, margin_mm: float = 0.0) -> Door | Opening | None:
         """The door or opening whose span (widened by ``margin_mm``) covers ``s`` on a side."""
@@ -304,16 +517,20 @@ class Floor(_Model):
         return None
 
     def nearest_door(self, s_mm: float, side: Side | None = None) -> Door | None:
-        """The door whose centre is closest to ``s`` along the hallway."""
-        doors = [d for d in self.doors if side in (None, d.side)]
+        """The door along :attr:`hallway` whose centre is closest to ``s``."""
+        doors = [
+            d for d in self.doors if side in (None, d.side) and self._lies_along(d, self.hallway)
+        ]
         return min(doors, key=lambda d: abs(d.at_mm - s_mm), default=None)
 
     def angle_zone_at(self, x_mm: float, y_mm: float) -> AngleZone | None:
         """The angle zone containing a floor-frame point, if any."""
-        s, d = self.to_hallway(x_mm, y_mm)
-        if abs(d) > self.hallway.width_mm / 2:
-            return None
-        return next((z for z in self.angle_zones if z.from_mm <= s <= z.to_mm), None)
+        for zone in self.angle_zones:
+            hallway = self.hallway_of(zone)
+            s, d = hallway.to_local(x_mm, y_mm)
+            if abs(d) <= hallway.width_mm / 2 and zone.from_mm <= s <= zone.to_mm:
+                return zone
+        return None
 
     def door(self, door_id: str) -> Door:
         for door in self.doors:
@@ -352,23 +569,40 @@ class Floor(_Model):
         )
 
     def _generate_segments(self) -> Iterator[WallSegment]:
+        for hallway in self.hallways:
+            yield from self._hallway_segments(hallway)
+        for meeting in self.meetings:
+            if meeting.side is None:
+                yield from self._width_steps(meeting)
         h = self.wall_height_mm
-        half = self.hallway.width_mm / 2
-        length = self.hallway.length_mm
+        for wall in self.walls:
+            points = [*wall.points, wall.points[0]] if wall.closed else wall.points
+            top = wall.height_mm or h
+            for a, b in itertools.pairwise(points):
+                yield WallSegment(f"wall {wall.id}", a[0], a[1], b[0], b[1], 0.0, top)
+
+    def _hallway_segments(self, hallway: Hallway) -> Iterator[WallSegment]:
+        """One hallway's walls, with its doors, openings and the gaps of those joining it."""
+        h = self.wall_height_mm
+        name = "hallway" if len(self.hallways) == 1 else f"hallway {hallway.id}"
+        half = hallway.width_mm / 2
+        lo_mm, hi_mm, start_open, end_open = self.extents[hallway.id]
 
         def seg(
             element: str, a: tuple[float, float], b: tuple[float, float], top: float = h
         ) -> WallSegment:
-            return WallSegment(element, *self.from_hallway(*a), *self.from_hallway(*b), 0.0, top)
+            return WallSegment(element, *hallway.from_local(*a), *hallway.from_local(*b), 0.0, top)
 
         for side, sign in (("left", 1.0), ("right", -1.0)):
             wall_d = sign * half
-            cursor = 0.0
-            for feature in self.features(side):  # type: ignore[arg-type]
+            cursor = lo_mm
+            for feature in self._features_along(hallway, side):  # type: ignore[arg-type]
                 lo, hi = feature.span
                 if lo > cursor:
-                    yield seg(f"hallway {side} wall", (cursor, wall_d), (lo, wall_d))
+                    yield seg(f"{name} {side} wall", (cursor, wall_d), (lo, wall_d))
                 cursor = max(cursor, hi)
+                if isinstance(feature, Junction):
+                    continue  # the joining hallway's own walls run from the gap
                 if isinstance(feature, Door):
                     back = wall_d + sign * feature.recess_mm
                     element = f"door {feature.id}"
@@ -384,17 +618,22 @@ class Floor(_Model):
                     yield seg(element, (hi, wall_d), (hi, far))
                     if feature.end == "wall":
                         yield seg(element, (lo, far), (hi, far))
-            if cursor < length:
-                yield seg(f"hallway {side} wall", (cursor, wall_d), (length, wall_d))
-        if self.hallway.start_closed:
-            yield seg("hallway start wall", (0.0, -half), (0.0, half))
-        if self.hallway.end_closed:
-            yield seg("hallway end wall", (length, -half), (length, half))
-        for wall in self.walls:
-            points = [*wall.points, wall.points[0]] if wall.closed else wall.points
-            top = wall.height_mm or h
-            for a, b in itertools.pairwise(points):
-                yield WallSegment(f"wall {wall.id}", a[0], a[1], b[0], b[1], 0.0, top)
+            if cursor < hi_mm:
+                yield seg(f"{name} {side} wall", (cursor, wall_d), (hi_mm, wall_d))
+        if not start_open:
+            yield seg(f"{name} start wall", (lo_mm, -half), (lo_mm, half))
+        if not end_open:
+            yield seg(f"{name} end wall", (hi_mm, -half), (hi_mm, half))
+
+    def _width_steps(self, meeting: Meeting) -> Iterator[WallSegment]:
+        """Where a hallway goes straight on at another width: the step in each wall."""
+        through, joining = meeting.through, meeting.joining
+        if abs(through.width_mm - joining.width_mm) < 1.0:
+            return
+        for sign in (1.0, -1.0):
+            a = through.from_local(meeting.s_mm, sign * through.width_mm / 2)
+            b = through.from_local(meeting.s_mm, sign * joining.width_mm / 2)
+            yield WallSegment(f"hallway {through.id} step", *a, *b, 0.0, self.wall_height_mm)
 
 
 class RoomLocation(NamedTuple):
@@ -435,8 +674,9 @@ class FloorPlan(_Model):
         return [
             d.room
             for f in self.floors
-            for d in sorted(f.doors, key=lambda d: d.at_mm)
-            if d.kind == "office"
+            for h in f.hallways
+            for d in sorted(f.view(h.id).features(), key=lambda d: d.at_mm)
+            if isinstance(d, Door) and d.kind == "office"
         ]
 
 
@@ -468,6 +708,8 @@ def parse_floorplan(raw: dict[str, Any], path: str | Path = "<floor plan>") -> F
         error = exc.errors()[0]
         element, field = _describe_location(raw, error["loc"])
         message = error["msg"]
+        if error["type"] == "value_error":
+            message = str(error["ctx"]["error"])  # without pydantic's "Value error, "
         if error["type"] in ("float_type", "int_type") and isinstance(error["input"], str):
             message = f"a number was expected, not the string {error['input']!r}"
         problem = f"{field}: {message}" if field else message
@@ -478,6 +720,7 @@ def parse_floorplan(raw: dict[str, Any], path: str | Path = "<floor plan>") -> F
 
 _ELEMENT_NAMES = {
     "floors": "floor",
+    "hallways": "hallway",
     "doors": "door",
     "openings": "opening",
     "walls": "wall",
@@ -522,8 +765,7 @@ def _check_consistency(plan: FloorPlan, path: str | Path) -> None:
             raise FloorPlanError(path, f"floor {level}", "level appears more than once")
     for floor in plan.floors:
         where = f"floor {floor.level}"
-        if floor.hallway.length_mm <= 0:
-            raise FloorPlanError(path, f"{where} / hallway", "start and end are the same point")
+        _check_hallways(floor, path)
         groups: list[tuple[str, Sequence[Door | Opening | Wall | AngleZone | Anchor]]] = [
             ("door", floor.doors),
             ("opening", floor.openings),
@@ -537,31 +779,8 @@ def _check_consistency(plan: FloorPlan, path: str | Path) -> None:
                 if item.id in seen:
                     raise FloorPlanError(path, f"{where} / {kind} {item.id}", "duplicate id")
                 seen.add(item.id)
-        length = floor.hallway.length_mm
-        for side in ("left", "right"):
-            previous: Door | Opening | None = None
-            for feature in floor.features(side):
-                kind = "door" if isinstance(feature, Door) else "opening"
-                lo, hi = feature.span
-                if lo < 0 or hi > length:
-                    raise FloorPlanError(
-                        path,
-                        f"{where} / {kind} {feature.id}",
-                        f"spans {lo:.0f}..{hi:.0f} mm, outside the hallway (0..{length:.0f} mm)",
-                    )
-                if previous is not None and lo < previous.span[1]:
-                    raise FloorPlanError(
-                        path,
-                        f"{where} / {kind} {feature.id}",
-                        f"overlaps {previous.id} on the {side} side",
-                    )
-                previous = feature
-        for zone in floor.angle_zones:
-            if zone.from_mm < 0 or zone.to_mm > length:
-                raise FloorPlanError(
-                    path, f"{where} / angle zone {zone.id}", "lies outside the hallway"
-                )
-            _check_angle_zone_clear(floor, zone, path)
+        for hallway in floor.hallways:
+            _check_along(floor.view(hallway.id), path)
         _check_anchors_near(floor, path)
         _check_cameras(floor, path)
         elevators = [d for d in floor.doors if d.kind == "elevator"]
@@ -580,6 +799,95 @@ def _check_consistency(plan: FloorPlan, path: str | Path) -> None:
     for room in rooms:
         if rooms.count(room) > 1:
             raise FloorPlanError(path, f"room {room}", "has more than one door")
+
+
+def _check_hallways(floor: Floor, path: str | Path) -> None:
+    """Hallways with ids of their own, a length, meeting only end to axis at right angles
+    (or straight on), and every door, opening and zone on one of them."""
+    where = f"floor {floor.level}"
+    ids = [h.id for h in floor.hallways]
+    for hallway in floor.hallways:
+        element = f"{where} / hallway {hallway.id}"
+        if ids.count(hallway.id) > 1:
+            raise FloorPlanError(path, element, "duplicate id")
+        if hallway.length_mm <= 0:
+            raise FloorPlanError(path, element, "start and end are the same point")
+    for kind, items in (
+        ("door", floor.doors),
+        ("opening", floor.openings),
+        ("angle zone", floor.angle_zones),
+    ):
+        for item in items:
+            element = f"{where} / {kind} {item.id}"
+            if item.hallway is None and len(ids) > 1:
+                raise FloorPlanError(
+                    path, element, f"hallway: the floor has several ({', '.join(ids)}): say which"
+                )
+            if item.hallway is not None and item.hallway not in ids:
+                raise FloorPlanError(
+                    path, element, f"hallway: no hallway {item.hallway!r} ({', '.join(ids)})"
+                )
+    for meeting in floor.meetings:
+        turn = abs(math.remainder(meeting.joining.heading_deg - meeting.through.heading_deg, 180))
+        if min(turn, abs(turn - 90)) > 1.0:
+            raise FloorPlanError(
+                path,
+                f"{where} / hallway {meeting.joining.id}",
+                f"meets hallway {meeting.through.id} at {turn:.0f} degrees: hallways meet at "
+                "right angles or go straight on",
+            )
+    for joining in floor.hallways:
+        for point in (joining.start, joining.end):
+            for through in floor.hallways:
+                s, d = through.to_local(*point)
+                inside = JUNCTION_TOLERANCE_MM < abs(d) < through.width_mm / 2
+                if through is not joining and inside and 0 < s < through.length_mm:
+                    raise FloorPlanError(
+                        path,
+                        f"{where} / hallway {joining.id}",
+                        f"ends inside hallway {through.id}, {abs(d):.0f} mm off its axis: "
+                        "a hallway ends on the other's axis where they meet",
+                    )
+
+
+def _check_along(view: Floor, path: str | Path) -> None:
+    """One hallway's doors, openings, junctions and angle zones: inside its walls' run, not
+    overlapping on a side."""
+    where = f"floor {view.level}"
+    lo_mm, hi_mm, _, _ = view.extents[view.hallway.id]
+    name = "the hallway" if len(view.hallways) == 1 else f"hallway {view.hallway.id}"
+    for side in ("left", "right"):
+        previous: Door | Opening | None = None
+        for feature in view.features(side):
+            kind = (
+                "door"
+                if isinstance(feature, Door)
+                else "hallway"
+                if isinstance(feature, Junction)
+                else "opening"
+            )
+            lo, hi = feature.span
+            if lo < lo_mm - JUNCTION_TOLERANCE_MM or hi > hi_mm + JUNCTION_TOLERANCE_MM:
+                raise FloorPlanError(
+                    path,
+                    f"{where} / {kind} {feature.id}",
+                    f"spans {lo:.0f}..{hi:.0f} mm, outside {name} ({lo_mm:.0f}..{hi_mm:.0f} mm)",
+                )
+            if previous is not None and lo < previous.span[1]:
+                raise FloorPlanError(
+                    path,
+                    f"{where} / {kind} {feature.id}",
+                    f"overlaps {previous.id} on the {side} side of {name}",
+                )
+            previous = feature
+    for zone in view.angle_zones:
+        if view.hallway_of(zone) is not view.hallway:
+            continue
+        if zone.from_mm < lo_mm or zone.to_mm > hi_mm:
+            raise FloorPlanError(
+                path, f"{where} / angle zone {zone.id}", "lies outside the hallway"
+            )
+        _check_angle_zone_clear(view, zone, path)
 
 
 def _check_angle_zone_clear(floor: Floor, zone: AngleZone, path: str | Path) -> None:
@@ -726,32 +1034,35 @@ def plan_warnings(
 
 
 def _uwb_coverage_gaps(floor: Floor, uwb_range_mm: float) -> list[PlanWarning]:
-    """Stretches of the hallway's centre line with fewer than three anchors in range: no UWB
-    fix there. The tag is taken at floor height, so an anchor's whole height counts."""
-    length = floor.hallway.length_mm
-    along = np.linspace(0.0, length, math.ceil(length / COVERAGE_STEP_MM) + 1)
-    points = np.array([floor.from_hallway(float(s), 0.0) for s in along])
+    """Stretches of each hallway's centre line with fewer than three anchors in range: no
+    UWB fix there. The tag is taken at floor height, so an anchor's whole height counts."""
     anchors = np.array([(a.x_mm, a.y_mm, a.z_mm) for a in floor.anchors], dtype=float)
     anchors = anchors.reshape(-1, 3)
-    distances = np.hypot(
-        np.hypot(points[:, :1] - anchors[:, 0], points[:, 1:] - anchors[:, 1]), anchors[:, 2]
-    )
-    in_range = (distances <= uwb_range_mm).sum(axis=1)
     warnings = []
-    short = in_range < MIN_ANCHORS
-    for is_short, run in itertools.groupby(range(len(along)), key=lambda i: bool(short[i])):
-        if not is_short:
-            continue
-        indices = list(run)
-        fewest = int(in_range[indices].min())
-        warnings.append(
-            PlanWarning(
-                f"floor {floor.level} / hallway",
-                f"{along[indices[0]]:.0f}..{along[indices[-1]]:.0f} mm along it has "
-                f"{fewest} UWB anchor{'' if fewest == 1 else 's'} within {uwb_range_mm:.0f} mm, "
-                f"a fix needs {MIN_ANCHORS}: the robot relies on odometry, walls and doors there",
-            )
+    for hallway in floor.hallways:
+        length = hallway.length_mm
+        along = np.linspace(0.0, length, math.ceil(length / COVERAGE_STEP_MM) + 1)
+        points = np.array([hallway.from_local(float(s), 0.0) for s in along])
+        distances = np.hypot(
+            np.hypot(points[:, :1] - anchors[:, 0], points[:, 1:] - anchors[:, 1]), anchors[:, 2]
         )
+        in_range = (distances <= uwb_range_mm).sum(axis=1)
+        short = in_range < MIN_ANCHORS
+        name = "hallway" if len(floor.hallways) == 1 else f"hallway {hallway.id}"
+        for is_short, run in itertools.groupby(range(len(along)), key=lambda i: bool(short[i])):
+            if not is_short:
+                continue
+            indices = list(run)
+            fewest = int(in_range[indices].min())
+            warnings.append(
+                PlanWarning(
+                    f"floor {floor.level} / {name}",
+                    f"{along[indices[0]]:.0f}..{along[indices[-1]]:.0f} mm along it has "
+                    f"{fewest} UWB anchor{'' if fewest == 1 else 's'} within "
+                    f"{uwb_range_mm:.0f} mm, a fix needs {MIN_ANCHORS}: the robot relies on "
+                    "odometry, walls and doors there",
+                )
+            )
     return warnings
 
 

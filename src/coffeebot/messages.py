@@ -328,11 +328,12 @@ class MoveInstruction(Message):
     """What navigation wants motion to do now; motion reports progress on ``MOTION_STATUS``.
 
     ``id`` changes with every new instruction so motion knows a repeat from a new goal.
-    ``follow_lane``: drive along the hallway of ``floor`` to ``target_s_mm`` (the floor plan's
-    along-hallway coordinate), ``lane_mm`` to the left of the axis (None: keep right at the
-    configured wall distance); with ``target_room`` set, the stop is refined by that door's
-    detection. ``drive_to``: straight to ``x_mm``/``y_mm`` (through a doorway, into the
-    elevator car). ``turn``: on the spot to ``heading_deg``. ``stop``/``wait``: stand still.
+    ``follow_lane``: drive along ``hallway`` (None: the first) of ``floor`` to ``target_s_mm``
+    (that hallway's along-hallway coordinate), ``lane_mm`` to the left of its axis (None:
+    keep right at the configured wall distance); with ``target_room`` set, the stop is
+    refined by that door's detection. ``drive_to``: straight to ``x_mm``/``y_mm`` (through
+    a doorway, into the elevator car). ``turn``: on the spot to ``heading_deg``.
+    ``stop``/``wait``: stand still.
     ``stop``: False passes ``target_s_mm`` at speed (a lane change on the way), True stops
     there. ``avoid``: whether motion may leave the lane around a static obstacle.
     """
@@ -340,6 +341,7 @@ class MoveInstruction(Message):
     id: int = 0
     action: Literal["stop", "wait", "follow_lane", "drive_to", "turn"]
     floor: int | None = None
+    hallway: str | None = None
     target_s_mm: float | None = None
     lane_mm: float | None = None
     x_mm: float | None = None

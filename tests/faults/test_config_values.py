@@ -106,9 +106,9 @@ def plan_with(tmp_path: Path, old: str, new: str, source: Path = EXAMPLE_PLAN) -
     ("old", "new", "element", "field"),
     [
         ("at_mm = 2500", "at_mm = nan", "floor 1 / door 101", "at_mm"),
-        ("end = [12000, 0]", "end = [inf, 0]", "floor 1", "hallway.end.0"),
-        ("width_mm = 1600", "width_mm = inf", "floor 1", "hallway.width_mm"),
-        ("start = [0, 0]", "start = [0, 2e9]", "floor 1", "hallway.start.1"),
+        ("end = [12000, 0]", "end = [inf, 0]", "floor 1 / hallway main", "end.0"),
+        ("width_mm = 1600", "width_mm = inf", "floor 1 / hallway main", "width_mm"),
+        ("start = [0, 0]", "start = [0, 2e9]", "floor 1 / hallway main", "start.1"),
     ],
 )
 def test_impossible_floor_plan_values_are_refused(

@@ -59,7 +59,9 @@ def hallway_floor(angle_zones: list[dict] | None = None, doors: list[dict] | Non
             "floors": [
                 {
                     "level": 1,
-                    "hallway": {"start": [0, 0], "end": [20000, 0], "width_mm": 1700},
+                    "hallways": [
+                        {"id": "main", "start": [0, 0], "end": [20000, 0], "width_mm": 1700}
+                    ],
                     "doors": doors
                     if doors is not None
                     else [

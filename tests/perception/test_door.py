@@ -69,9 +69,9 @@ def test_below_the_80_mm_threshold_is_no_door() -> None:
     def floor_with_recess(recess: float) -> Floor:
         door = {"room": "9", "side": "right", "at_mm": 3000, "recess_mm": recess}
         tea = {"room": "t", "side": "left", "at_mm": 500, "kind": "tea_room"}
-        hallway = {"start": [0, 0], "end": [6000, 0]}
+        hallway = {"id": "main", "start": [0, 0], "end": [6000, 0]}
         return parse_floorplan(
-            {"floors": [{"level": 1, "hallway": hallway, "doors": [door, tea]}]}
+            {"floors": [{"level": 1, "hallways": [hallway], "doors": [door, tea]}]}
         ).floors[0]
 
     assert drive(floor_with_recess(70), start=1500, end=4500, speed=300) == []
@@ -105,7 +105,7 @@ def test_a_door_many_sigmas_from_where_the_pose_puts_it_is_not_matched() -> None
     assert detector.gate_mm(pose(6000, -300, 0.0, sigma_mm=2000), floor) == 1200
     # Along a diagonal hallway, the pose's x-y covariance is part of its sigma along it.
     diagonal = floor.model_copy(
-        update={"hallway": floor.hallway.model_copy(update={"end": (20000.0, 20000.0)})}
+        update={"hallways": [floor.hallway.model_copy(update={"end": (20000.0, 20000.0)})]}
     )
     assert diagonal.hallway.heading_deg == pytest.approx(45.0)
     correlated = pose(6000, -300, 45.0, sigma_mm=100).model_copy(update={"cov_xy_mm2": 8000.0})

@@ -52,7 +52,9 @@ def box_floor(width_mm: float = 2000.0) -> FloorPlan:
             "floors": [
                 {
                     "level": 1,
-                    "hallway": {"start": [0, 0], "end": [10000, 0], "width_mm": width_mm},
+                    "hallways": [
+                        {"id": "main", "start": [0, 0], "end": [10000, 0], "width_mm": width_mm}
+                    ],
                     "doors": [{"room": "T", "kind": "tea_room", "side": "left", "at_mm": 500}],
                 }
             ]

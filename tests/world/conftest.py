@@ -36,7 +36,9 @@ def _tiny_plan_dict(**hallway: Any) -> dict[str, Any]:
         "floors": [
             {
                 "level": 1,
-                "hallway": {"start": [0, 0], "end": [10000, 0], "width_mm": 1700, **hallway},
+                "hallways": [
+                    {"id": "main", "start": [0, 0], "end": [10000, 0], "width_mm": 1700, **hallway}
+                ],
                 "doors": [
                     {"room": "101", "side": "right", "at_mm": 5000, "recess_mm": 100},
                     {"room": "Tea", "kind": "tea_room", "side": "left", "at_mm": 8000},

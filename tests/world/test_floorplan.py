@@ -201,7 +201,7 @@ def test_zone_must_be_ordered(plan_dict: Callable[..., dict[str, Any]]) -> None:
 
 def test_several_floors_need_an_elevator(plan_dict: Callable[..., dict[str, Any]]) -> None:
     raw = plan_dict()
-    second = {"level": 2, "hallway": {"start": [0, 0], "end": [5000, 0]}}
+    second = {"level": 2, "hallways": [{"id": "main", "start": [0, 0], "end": [5000, 0]}]}
     raw["floors"].append(second)
     assert _error(raw).element == "floor 1"
 
@@ -262,7 +262,7 @@ def _two_floors(plan_dict: Callable[..., dict[str, Any]]) -> dict[str, Any]:
     first = raw["floors"][0]
     elevator = {"id": "E", "room": "elevator", "kind": "elevator", "side": "left", "at_mm": 2000}
     first["doors"].append(elevator)
-    second = {"level": 2, "hallway": dict(first["hallway"]), "doors": [dict(elevator)]}
+    second = {"level": 2, "hallways": [dict(first["hallways"][0])], "doors": [dict(elevator)]}
     raw["floors"].append(second)
     return raw
 
@@ -294,7 +294,7 @@ def test_an_elevator_on_a_hallway_surveyed_the_other_way_is_the_same_car(
 ) -> None:
     """Floor 2's hallway runs from x 10000 to 0: the same door is on its right, 8000 mm in."""
     raw = _two_floors(plan_dict)
-    raw["floors"][1]["hallway"].update(start=[10000, 0], end=[0, 0])
+    raw["floors"][1]["hallways"][0].update(start=[10000, 0], end=[0, 0])
     raw["floors"][1]["doors"][0].update(side="right", at_mm=8000)
     assert parse_floorplan(raw).floor(2).elevator is not None
 

@@ -100,7 +100,7 @@ def test_render_command_reports_a_bad_plan(
     bad.write_text("[[floors]]\nlevel = 1\n")
     assert render_command(_args(str(bad), "-o", str(tmp_path / "x.svg"))) == 2
     err = capsys.readouterr().err
-    assert "bad.toml: floor 1: hallway: Field required" in err
+    assert "bad.toml: floor 1: hallways: Field required" in err
 
 
 def test_cli_renders_a_floor_plan(tmp_path: Path) -> None:

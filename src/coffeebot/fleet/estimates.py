@@ -47,8 +47,8 @@ class TravelTimes:
         return self._along(base.floor, x, y, self.planner.door_place(room))
 
     def _along(self, floor: int, x_mm: float, y_mm: float, goal: Place) -> float:
-        s, leave = self.planner.where(floor, x_mm, y_mm)
-        route = self.planner.route(floor, s, goal, leave)
+        hallway, s, leave = self.planner.where(floor, x_mm, y_mm)
+        route = self.planner.route(floor, s, goal, leave, hallway=hallway)
         legs = route_legs(route, self.plan, floor, (x_mm, y_mm))
         length = sum(polyline_length_mm(leg.points) for leg in legs)
         return length / self.pace.travel_mm_s + (len(legs) - 1) * self.pace.elevator_ride_s

@@ -35,7 +35,9 @@ class AngleModule(Module):
                     envelope.msg,
                     envelope.seq,
                     pose,
-                    None if pose is None else self.plan.floor(pose.floor),
+                    None
+                    if pose is None
+                    else self.plan.floor(pose.floor).view_near(pose.x_mm, pose.y_mm),
                     obstacle,
                     envelope.stamp,
                 )

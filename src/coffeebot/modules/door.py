@@ -51,7 +51,9 @@ class DoorModule(Module):
                     scan,
                     envelope.seq,
                     pose,
-                    None if pose is None else self.plan.floor(pose.floor),
+                    None
+                    if pose is None
+                    else self.plan.floor(pose.floor).view_near(pose.x_mm, pose.y_mm),
                     0.0 if pose is None else pose.speed_mm_s,
                     self.scan_rate_hz,
                 )

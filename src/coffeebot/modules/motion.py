@@ -319,7 +319,7 @@ class MotionModule(Module):
     def zone(self, pose: PoseEstimate, limit_mm_s: float) -> ZoneLimit | None:
         """The slow zone of an opening that caps the speed below ``limit_mm_s`` here, if any:
         the robot taken to drive along the hallway the way it faces."""
-        floor = self.plan.floor(pose.floor)
+        floor = self.plan.floor(pose.floor).view_near(pose.x_mm, pose.y_mm)
         s, d = floor.to_hallway(pose.x_mm, pose.y_mm)
         facing = math.cos(math.radians(pose.heading_deg - floor.hallway.heading_deg))
         return self.zones.limit(floor, s, d, 1.0 if facing >= 0 else -1.0, limit_mm_s)

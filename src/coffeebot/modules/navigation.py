@@ -250,7 +250,7 @@ class NavigationModule(Module):
         target = ins.target_s_mm
         if end_s is None or target is None or pose is None or pose.floor != ins.floor:
             return None
-        floor = self.planner.plan.floor(pose.floor)
+        floor = self.planner.plan.floor(pose.floor).view(ins.hallway)
         s = floor.to_hallway(pose.x_mm, pose.y_mm)[0]
         return Leg(floor, 1.0 if target >= s else -1.0, target, end_s)
 
@@ -455,8 +455,10 @@ class NavigationModule(Module):
         if pose is None:
             raise DeliveryAborted("the robot does not know where it is", DeliveryProblem.LOST)
         goal = self.planner.base if room is None else self.planner.door_place(room)
-        s, leave = self.planner.where(pose.floor, pose.x_mm, pose.y_mm)
-        route = self.planner.route(pose.floor, s, goal, leave, park=room is not None)
+        hallway, s, leave = self.planner.where(pose.floor, pose.x_mm, pose.y_mm)
+        route = self.planner.route(
+            pose.floor, s, goal, leave, park=room is not None, hallway=hallway
+        )
         life = self._life
         ctx.board.publish(
             ROUTE,

@@ -223,13 +223,13 @@ class BlockRule:
 
 def leg_ends(steps: Sequence[Step]) -> list[float | None]:
     """Per step of a route, for a lane move, where its leg ends: the target of the last lane
-    move on the same floor after it with nothing but leases between (a lease moves nothing; a
-    turn, a drive or a ride ends the leg). None for every other step. A lane move that passes
-    its point at speed (a lane change) is one leg with the next: a blocked stretch just beyond
-    it must be known before, not once the robot is upon it."""
+    move on the same floor and hallway after it with nothing but leases between (a lease
+    moves nothing; a turn, a drive or a ride ends the leg). None for every other step. A
+    lane move that passes its point at speed (a lane change) is one leg with the next: a
+    blocked stretch just beyond it must be known before, not once the robot is upon it."""
     ends: list[float | None] = [None] * len(steps)
     end: float | None = None
-    floor: int | None = None
+    along: tuple[int | None, str | None] | None = None
     for i in reversed(range(len(steps))):
         step = steps[i]
         if isinstance(step, Lease):
@@ -238,7 +238,7 @@ def leg_ends(steps: Sequence[Step]) -> list[float | None]:
         if ins is None or ins.action != "follow_lane" or ins.target_s_mm is None:
             end = None
             continue
-        if end is None or ins.floor != floor:
-            end, floor = ins.target_s_mm, ins.floor
+        if end is None or (ins.floor, ins.hallway) != along:
+            end, along = ins.target_s_mm, (ins.floor, ins.hallway)
         ends[i] = end
     return ends

@@ -196,7 +196,8 @@ class MotionController:
             self._state = MotionState.MOVING
             self._since = now
             if instruction.target_s_mm is not None and instruction.floor == pose.floor:
-                s = self.plan.floor(pose.floor).to_hallway(pose.x_mm, pose.y_mm)[0]
+                along = self.plan.floor(pose.floor).view(instruction.hallway)
+                s = along.to_hallway(pose.x_mm, pose.y_mm)[0]
                 self._direction = 1.0 if instruction.target_s_mm >= s else -1.0
         if instruction.floor is not None and instruction.floor != pose.floor:
             status = self._status(
@@ -207,7 +208,7 @@ class MotionController:
                 f"on floor {pose.floor}, instruction is for floor {instruction.floor}",
             )
             return self._command(0.0, 0.0, dt, status, speed_limit)
-        floor = self.plan.floor(pose.floor)
+        floor = self.plan.floor(pose.floor).view(instruction.hallway)
         if instruction.action == "turn":
             return self._turn(instruction, pose, now, dt, speed_limit)
         if instruction.action == "drive_to":

@@ -31,7 +31,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 from coffeebot.config import CollisionConfig, OpeningsConfig, TofSensorConfig
-from coffeebot.floorplan import Floor
+from coffeebot.floorplan import Floor, Opening
 from coffeebot.perception.collision import safe_speed_mm_s
 
 
@@ -120,7 +120,10 @@ class OpeningZones:
             return None
         front_s = s_mm + direction * self.front_mm
         found: ZoneLimit | None = None
-        for opening in floor.openings:
+        # The openings along this hallway, and the mouths of the hallways that join it.
+        for opening in floor.features():
+            if not isinstance(opening, Opening):
+                continue
             lo, hi = opening.span
             near, far = (lo, hi) if direction > 0 else (hi, lo)
             if (far - front_s) * direction < 0:

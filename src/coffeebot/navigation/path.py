@@ -19,7 +19,8 @@ def _point(plan: FloorPlan, ins: MoveInstruction) -> tuple[float, float] | None:
     if ins.floor is None:
         return None
     if ins.action == "follow_lane" and ins.target_s_mm is not None:
-        return plan.floor(ins.floor).from_hallway(ins.target_s_mm, ins.lane_mm or 0.0)
+        along = plan.floor(ins.floor).view(ins.hallway)
+        return along.from_hallway(ins.target_s_mm, ins.lane_mm or 0.0)
     if ins.action == "drive_to" and ins.x_mm is not None and ins.y_mm is not None:
         return ins.x_mm, ins.y_mm
     return None

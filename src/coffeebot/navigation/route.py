@@ -43,10 +43,12 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 from coffeebot.config import MotionConfig, NavigationConfig
 from coffeebot.floorplan import Door, Floor, FloorPlan, ParkingSpot
 from coffeebot.messages import MoveInstruction, SharedPlace
+from coffeebot.navigation.hallway_graph import hops
 from coffeebot.navigation.passing import right_lane_mm
 
 DOORWAY_CLEARANCE_MM = 100.0
@@ -92,6 +94,15 @@ class Route:
     """Steps in order, ending at the goal."""
 
     steps: list[Step] = field(default_factory=list)
+
+
+class Whereabouts(NamedTuple):
+    """Where a robot is, as a route starts: along which hallway, how far, and behind which
+    door (None: in the hallway)."""
+
+    hallway: str
+    s_mm: float
+    leave: Door | None
 
 
 @dataclass(frozen=True)
@@ -195,6 +206,7 @@ class RoutePlanner:
             MoveInstruction(
                 action="follow_lane",
                 floor=floor.level,
+                hallway=floor.hallway.id,
                 target_s_mm=to_s,
                 lane_mm=lane,
                 speed_mm_s=speed or self.motion.cruise_speed_mm_s,
@@ -232,12 +244,14 @@ class RoutePlanner:
         goal: Place,
         leave: Door | None = None,
         park: bool = True,
+        hallway: str | None = None,
     ) -> Route:
-        """From ``s_start`` along ``floor_level``'s hallway (or parked behind ``leave``) to
-        ``goal``; a fleet's robot coming home ends on the loading spot, holding it, unless it
-        goes on to ``park`` (:meth:`back_to_spot`, or :meth:`face_out` for its next cup)."""
+        """From ``s_start`` along ``hallway`` (None: the first) of ``floor_level`` (or parked
+        behind ``leave``) to ``goal``; a fleet's robot coming home ends on the loading spot,
+        holding it, unless it goes on to ``park`` (:meth:`back_to_spot`, or :meth:`face_out`
+        for its next cup)."""
         steps: list[Step] = []
-        floor = self.plan.floor(floor_level)
+        floor = self.plan.floor(floor_level).view(hallway)
         s = s_start
         rides = goal.floor != floor_level
         # Leaving a room near the elevator, a fleet's robot waits for it in the room.
@@ -288,12 +302,15 @@ class RoutePlanner:
                 clear, s = self._out_of_crossing(floor, s, goal, lane, direction)
                 steps += clear
         if rides:
+            assert floor.elevator is not None  # the floor plan loader guarantees it
+            between, floor, s = self._between_hallways(floor, s, floor.elevator)
+            steps += between
             steps.extend(self._to_elevator(floor, s, goal, asked))
             in_the_car = _front_of_car_given_back(steps)
             if to_car_near:
                 in_the_car.append(spot_given_back)
             steps.append(self._ride(floor_level, goal.floor, goal, in_the_car))
-            floor = self.plan.floor(goal.floor)
+            floor = self._view_of(goal.floor, self.plan.floor(goal.floor).elevator)
             assert floor.elevator is not None
             s = floor.elevator.at_mm
             steps += self._out_of_car(floor, goal)
@@ -303,26 +320,77 @@ class RoutePlanner:
         # Waiting at the holding point, the robot is out of every other's way until it
         # turns in: the next may ride down to it once it is in the room.
         held = Lease("holding_point", True) in steps
+        between, floor, s = self._between_hallways(floor, s, goal.door)
+        steps += between
         steps.extend(self._along(floor, s, goal, park, held=held))
         # Its goal lies within the space in front of the car.
         steps += _front_of_car_given_back(steps)
         return Route(steps)
 
-    def where(self, floor_level: int, x_mm: float, y_mm: float) -> tuple[float, Door | None]:
-        """The robot's ``s`` and, when it stands behind a door (in a room), that door."""
-        floor = self.plan.floor(floor_level)
+    def where(self, floor_level: int, x_mm: float, y_mm: float) -> Whereabouts:
+        """The hallway the robot is in (or whose door it stands behind, in a room), its
+        ``s`` along it, and that door."""
+        floor = self.plan.floor(floor_level).view_near(x_mm, y_mm)
         s, d = floor.to_hallway(x_mm, y_mm)
         if abs(d) <= floor.hallway.width_mm / 2:
-            return s, None
-        return s, floor.nearest_door(s, "left" if d > 0 else "right")
+            return Whereabouts(floor.hallway.id, s, None)
+        return Whereabouts(floor.hallway.id, s, floor.nearest_door(s, "left" if d > 0 else "right"))
 
     def _direction(self, floor: Floor, s: float, goal: Place) -> float:
-        """Which way along the hallway the route leaves ``s`` in."""
+        """Which way along ``floor``'s hallway the route leaves ``s`` in."""
         if goal.floor != floor.level:
-            target = floor.elevator.at_mm if floor.elevator is not None else s
+            if floor.elevator is None:
+                return 1.0
+            target = self._aim_mm(floor, s, floor.elevator)
         else:
-            target = goal.door.at_mm
+            target = self._aim_mm(floor, s, goal.door)
         return 1.0 if target >= s else -1.0
+
+    # --- between hallways -------------------------------------------------------------------
+
+    def _view_of(self, level: int, door: Door | None) -> Floor:
+        """Floor ``level`` as seen along the hallway ``door`` opens on."""
+        floor = self.plan.floor(level)
+        return floor if door is None else floor.view_of(door)
+
+    def _aim_mm(self, floor: Floor, s: float, door: Door) -> float:
+        """Where along ``floor``'s hallway the way to ``door`` goes: the door, if it opens on
+        this hallway, else where this hallway meets the next one on the way."""
+        whole = self.plan.floor(floor.level)
+        on = whole.hallway_of(door).id
+        if on == floor.hallway.id:
+            return door.at_mm
+        return hops(whole, floor.hallway.id, s, on, door.at_mm)[0].s_mm
+
+    def _between_hallways(
+        self, floor: Floor, s: float, door: Door
+    ) -> tuple[list[Step], Floor, float]:
+        """From ``s`` along ``floor``'s hallway to the hallway ``door`` opens on; and the
+        view and ``s`` it ends at. At each meeting: kept right until ``pull_over_mm``
+        short, then on the axis to ``pivot_mm`` short of the next hallway's axis, where a
+        quarter turn about the axle leaves the centre on that axis (in a lane beside the
+        wall the rear corners' sweep has little room), turned along the next hallway."""
+        whole = self.plan.floor(floor.level)
+        to_s = door.at_mm
+        steps: list[Step] = []
+        route = hops(whole, floor.hallway.id, s, whole.hallway_of(door).id, to_s)
+        for index, hop in enumerate(route):
+            direction = 1.0 if hop.s_mm >= s else -1.0
+            keep_right = hop.s_mm - direction * self.nav.pull_over_mm
+            if (keep_right - s) * direction > 0:
+                lane = self.lane_mm(floor, direction)
+                steps.append(
+                    self._lane(floor, keep_right, lane, stop=False, detail="along the hallway")
+                )
+            detail = f"to hallway {hop.next_hallway}"
+            steps.append(
+                self._lane(floor, hop.s_mm - direction * self.pivot_mm, 0.0, detail=detail)
+            )
+            floor, s = whole.view(hop.next_hallway), hop.next_s_mm
+            aim = route[index + 1].s_mm if index + 1 < len(route) else to_s
+            along = self.travel_deg(floor, 1.0 if aim >= s else -1.0)
+            steps.append(self._turn(floor, along, f"into hallway {hop.next_hallway}"))
+        return steps, floor, s
 
     # --- the elevator in a fleet ------------------------------------------------------------
 
@@ -395,7 +463,7 @@ class RoutePlanner:
         it, or when there is not a body's length left beyond it to turn round
         in (a turn on the spot is held while the front is within its stop distance of a
         wall)."""
-        floor = self.plan.floor(goal.floor)
+        floor = self._view_of(goal.floor, goal.door)
         elevator = floor.elevator
         if not goal.inside or elevator is None:
             return None
@@ -531,15 +599,16 @@ class RoutePlanner:
     ) -> ElevatorRide:
         """The ride to ``goal``'s floor; ``given_back``: the places it no longer needs once
         in the car (it is in nobody's way there)."""
-        here, there = self.plan.floor(from_level), self.plan.floor(to_level)
+        here = self._view_of(from_level, self.plan.floor(from_level).elevator)
+        there = self._view_of(to_level, self.plan.floor(to_level).elevator)
         door_here, door_there = here.elevator, there.elevator
         assert door_here is not None and door_there is not None
         depth = self.nav.elevator.car_depth_mm
         facing = self.facing_deg(here, door_here)
-        target_s = goal.door.at_mm
+        target_s = self._aim_mm(there, door_there.at_mm, goal.door)
         direction = 1.0 if target_s >= door_there.at_mm else -1.0
         out_lane = self.lane_mm(there, direction)
-        straight_across = goal.inside and self._across_from(goal.door, door_there.at_mm)
+        straight_across = goal.inside and self._across_from(there, goal.door, door_there.at_mm)
         out_to = out_lane if straight_across else self.out_to_mm(door_there, out_lane)
         if straight_across and self.parking is not None and self._holding_point(goal) is not None:
             # Bound for the holding point, on the hallway's axis: its turn towards the point
@@ -584,13 +653,15 @@ class RoutePlanner:
         door_there = there.elevator
         assert door_there is not None
         steps: list[Step] = [Lease("elevator", False)] if self.parking is not None else []
-        if not (goal.inside and self._across_from(goal.door, door_there.at_mm)):
-            direction = 1.0 if goal.door.at_mm >= door_there.at_mm else -1.0
+        if not (goal.inside and self._across_from(there, goal.door, door_there.at_mm)):
+            aim = self._aim_mm(there, door_there.at_mm, goal.door)
+            direction = 1.0 if aim >= door_there.at_mm else -1.0
             steps.append(self._turn(there, self.travel_deg(there, direction), "into the lane"))
         return steps
 
-    def _across_from(self, door: Door, s: float) -> bool:
-        """Whether a robot at ``s`` stands across the hallway from ``door``, nearer to its
+    def _across_from(self, floor: Floor, door: Door, s: float) -> bool:
+        """Whether a robot at ``s`` along ``floor``'s hallway stands across it from ``door``
+        (on that hallway), nearer to its
         axis than a turn onto it carries the centre: there is no stopping short of it to
         turn in (the point lies behind the robot, and the turn made arriving from the other
         way carries the centre off the axis, towards a jamb), so it turns where it stands."""
@@ -627,7 +698,7 @@ class RoutePlanner:
             steps.append(Lease("loading_spot", True))
             if self._crossing(floor):
                 steps.append(Lease("crossing", True))
-        if not (goal.inside and self._across_from(door, s)):
+        if not (goal.inside and self._across_from(floor, door, s)):
             steps.append(
                 self._lane(
                     floor,
@@ -695,7 +766,7 @@ class RoutePlanner:
         """From a fleet robot's parking spot onto the loading spot, facing out, holding it:
         where it waits for the cup, and where a route out of the base room starts."""
         base = self.base
-        floor = self.plan.floor(base.floor)
+        floor = self._view_of(base.floor, base.door)
         return [Lease("loading_spot", True), *self._spot_to_loading(floor, base.door)]
 
     def face_out(self) -> list[Step]:
@@ -704,7 +775,7 @@ class RoutePlanner:
         which held the spot twice as long). The half turn about the axle carries the centre
         into the room; the drive back puts it on the spot."""
         base = self.base
-        floor = self.plan.floor(base.floor)
+        floor = self._view_of(base.floor, base.door)
         facing_out = self._turn(floor, self.facing_deg(floor, base.door) + 180.0, "facing out")
         return [facing_out, self.to_loading_spot(floor, base.door)]
 
@@ -712,7 +783,7 @@ class RoutePlanner:
         """From the loading spot back to its parking spot (home, or no cup came), giving it
         back."""
         base = self.base
-        floor = self.plan.floor(base.floor)
+        floor = self._view_of(base.floor, base.door)
         assert self.parking is not None
         moves = self._loading_to_spot(floor, base.door, self.parking)
         return [*moves, Lease("loading_spot", False)]

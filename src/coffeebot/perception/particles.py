@@ -319,8 +319,7 @@ class ParticlePoseFusion:
         door = self.floor.elevator
         if door is None or self.cfg.elevator_blind_mm <= 0:
             return False
-        sign = 1.0 if door.side == "left" else -1.0
-        x, y = self.floor.from_hallway(door.at_mm, sign * self.floor.hallway.width_mm / 2)
+        x, y = self.floor.behind_door(door, 0.0)
         px, py, _ = self.pose()
         return math.hypot(px - x, py - y) < self.cfg.elevator_blind_mm
 

@@ -149,8 +149,8 @@ class StateEstimator:
             return False
         used = self.fusion.update_heading(angle.heading_deg, angle.sigma_deg)
         # Each wall distance fixes the position across the hallway.
-        floor = self.plan.floor(self.floor)
         x, y, heading = self.fusion.pose()
+        floor = self.plan.floor(self.floor).view_near(x, y)
         frame = TravelFrame.for_heading(floor, heading)
         half = floor.hallway.width_mm / 2.0
         lateral = frame.lateral(x, y)

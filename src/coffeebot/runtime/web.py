@@ -36,10 +36,8 @@ def floor_svgs(plan: FloorPlan) -> Callable[[int], str | None]:
 def office_choices(plan: FloorPlan) -> list[RoomChoice]:
     """Every office of the plan, floor by floor in door order, for the order form."""
     return [
-        RoomChoice(id=door.room, floor=floor.level, label=f"Office {door.room}")
-        for floor in plan.floors
-        for door in sorted(floor.doors, key=lambda d: d.at_mm)
-        if door.kind == "office"
+        RoomChoice(id=room, floor=plan.find_room(room).floor.level, label=f"Office {room}")
+        for room in plan.rooms
     ]
 
 

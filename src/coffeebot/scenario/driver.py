@@ -241,7 +241,7 @@ class ScenarioModule(Module):
             robot = self.sim.robot
             if robot.floor_level != floor.level:
                 return None
-            s, _ = floor.to_hallway(robot.pose.x_mm, robot.pose.y_mm)
+            s, _ = floor.view_of(door).to_hallway(robot.pose.x_mm, robot.pose.y_mm)
         return abs(s - door.at_mm)
 
     def report(self) -> ScenarioReport:

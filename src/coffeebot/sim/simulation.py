@@ -92,7 +92,8 @@ class SimSetup:
 
 def demo_setup(plan: FloorPlan, speed: float = 1.0) -> SimSetup:
     """The robot in the hallway at the tea room door, facing back down the hallway."""
-    floor, door = plan.tea_room
+    whole, door = plan.tea_room
+    floor = whole.view_of(door)
     x, y = floor.from_hallway(door.at_mm, 0.0)
     return SimSetup(floor.level, Pose(x, y, floor.hallway.heading_deg + 180.0), speed=speed)
 

@@ -241,7 +241,7 @@ def detour_path(envelope: Envelope[Any], ctx: MapContext) -> list[PathShape]:
     ins = instruction.msg
     if ins.action != "follow_lane" or ins.floor != ctx.pose.floor or ins.target_s_mm is None:
         return []
-    floor = ctx.plan.floor(ins.floor)
+    floor = ctx.plan.floor(ins.floor).view(ins.hallway)
     s, _ = floor.to_hallway(ctx.pose.x_mm, ctx.pose.y_mm)
     direction = 1.0 if ins.target_s_mm >= s else -1.0
     until = status.detour_until_s_mm if status.detour_until_s_mm is not None else s

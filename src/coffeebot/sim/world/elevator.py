@@ -34,8 +34,11 @@ class SimElevator:
         answering: bool = True,
     ) -> None:
         self.plan = plan
+        # Each floor as seen along the hallway its car's door opens on.
         self.doors: dict[int, tuple[Floor, Door]] = {
-            f.level: (f, f.elevator) for f in plan.floors if f.elevator is not None
+            f.level: (f.view_of(f.elevator), f.elevator)
+            for f in plan.floors
+            if f.elevator is not None
         }
         self.car_floor = car_floor if car_floor is not None else min(self.doors)
         self.car_width_mm = car_width_mm
