@@ -168,3 +168,14 @@ def test_a_floor_of_one_hallway_marks_its_start_without_an_id(cs_building: Floor
         assert label.text == "s = 0"
         assert len(group.findall("svg:polygon[@class='hallway']", NS)) == 1
         assert len(group.findall("svg:polygon[@class='other-floor']", NS)) == 1
+
+
+@pytest.mark.parametrize("name", ["l-corner", "t-junction", "width-change"])
+def test_the_documentations_example_plans_draw_both_hallways(name: str) -> None:
+    """docs/floorplans.md shows these three plans' renders (docs/floorplan-NAME.svg)."""
+    plan = load_floorplan(ROOT / "docs" / "floorplans" / f"{name}.toml")
+    (floor,) = plan.floors
+    assert len(floor.hallways) == 2 and len(floor.meetings) == 1
+    group, _ = _panel(ET.fromstring(render_svg(plan)), floor.level)
+    assert len(_by_hallway(group, "polygon", "hallway")) == 2
+    assert (ROOT / "docs" / f"floorplan-{name}.svg").is_file()
