@@ -1,13 +1,14 @@
 """Floor plans: the building as the robot knows it, loaded from TOML.
 
 A floor plan is written the way one surveys a hallway with a tape measure: each floor has one
-main hallway given by its axis (start and end points in the floor frame) and width; doors and
-openings (side hallways) are placed by their distance along that axis and the side they are
-on. Free-form walls cover the rest (a tea room, an elevator lobby). The loader turns this into
-wall segments with heights, which the simulator ray-casts against and the SVG renderer draws.
+or more straight hallways, each given by its axis (start and end points in the floor frame)
+and width, meeting where one's end lies on another's axis; doors and openings are placed by
+their distance along their hallway's axis and the side they are on. Free-form walls cover
+the rest (a tea room, an elevator lobby). The loader turns this into wall segments with
+heights, which the simulator ray-casts against and the SVG renderer draws.
 
-Frames: x, y in mm in the floor frame shared by all floors and the UWB anchors. Along the
-hallway, ``s`` is the distance from the axis start and ``d`` the lateral offset, positive to
+Frames: x, y in mm in the floor frame shared by all floors and the UWB anchors. Along a
+hallway, ``s`` is the distance from its axis start and ``d`` the lateral offset, positive to
 the left when looking from start to end.
 """
 
@@ -431,14 +432,28 @@ class Floor(_Model):
                     if abs(d) > tol or not -tol <= s <= through.length_mm + tol:
                         continue
                     at_an_end = s <= tol or s >= through.length_mm - tol
-                    if at_an_end and h_index > j_index and self._ends_meet(joining, through):
+                    ends_meet = at_an_end and self._ends_meet(joining, through)
+                    if ends_meet and h_index > j_index:
                         continue  # an L or a width change: the one listed first runs through
+                    if ends_meet and self._on_an_axis(point, (joining, through)):
+                        continue  # a crossroads: both meet the hallway they cross, not each other
                     d_other = through.to_local(*other)[1]
                     side: Side | None = None
                     if abs(d_other) > tol:
                         side = "left" if d_other > 0 else "right"
                     found.append(Meeting(through, joining, end, s, side))  # type: ignore[arg-type]
         return tuple(found)
+
+    def _on_an_axis(self, point: tuple[float, float], besides: tuple[Hallway, ...]) -> bool:
+        """Whether ``point`` lies on another hallway's axis between its ends."""
+        tol = JUNCTION_TOLERANCE_MM
+        for hallway in self.hallways:
+            if hallway in besides:
+                continue
+            s, d = hallway.to_local(*point)
+            if abs(d) <= tol and tol < s < hallway.length_mm - tol:
+                return True
+        return False
 
     @staticmethod
     def _ends_meet(a: Hallway, b: Hallway) -> bool:
@@ -661,12 +676,21 @@ class FloorPlan(_Model):
         raise KeyError(f"no room {room!r} in floor plan {self.name!r}")
 
     @property
+    def tea_rooms(self) -> list[RoomLocation]:
+        """Every pickup point (a door of kind ``tea_room``), in floor then plan order."""
+        return [
+            RoomLocation(floor, door)
+            for floor in self.floors
+            for door in floor.doors
+            if door.kind == "tea_room"
+        ]
+
+    @property
     def tea_room(self) -> RoomLocation:
-        for floor in self.floors:
-            for door in floor.doors:
-                if door.kind == "tea_room":
-                    return RoomLocation(floor, door)
-        raise KeyError("floor plan has no tea room")
+        """The first pickup point: a fleet's base, where its robots park and are loaded."""
+        if not self.tea_rooms:
+            raise KeyError("floor plan has no tea room")
+        return self.tea_rooms[0]
 
     @property
     def rooms(self) -> list[str]:
@@ -790,10 +814,9 @@ def _check_consistency(plan: FloorPlan, path: str | Path) -> None:
             raise FloorPlanError(path, where, "no elevator door in a building of several floors")
     _check_elevator_aligned(plan, path)
     _check_camera_ids_unique(plan, path)
-    tea_rooms = [(f, d) for f in plan.floors for d in f.doors if d.kind == "tea_room"]
-    if len(tea_rooms) != 1:
+    if not plan.tea_rooms:
         raise FloorPlanError(
-            path, "floor plan", f"needs exactly one door of kind 'tea_room', found {len(tea_rooms)}"
+            path, "floor plan", "needs a door of kind 'tea_room' (where cups are picked up)"
         )
     rooms = [d.room for f in plan.floors for d in f.doors if d.kind != "elevator"]
     for room in rooms:
@@ -836,11 +859,23 @@ def _check_hallways(floor: Floor, path: str | Path) -> None:
                 f"meets hallway {meeting.through.id} at {turn:.0f} degrees: hallways meet at "
                 "right angles or go straight on",
             )
+    for a, b in itertools.combinations(floor.hallways, 2):
+        crossing = _axes_cross(a, b)
+        if crossing is not None:
+            raise FloorPlanError(
+                path,
+                f"{where} / hallway {b.id}",
+                f"crosses hallway {a.id} {crossing:.0f} mm along it: where hallways cross, "
+                "end one at the other's axis and start another there",
+            )
     for joining in floor.hallways:
         for point in (joining.start, joining.end):
             for through in floor.hallways:
                 s, d = through.to_local(*point)
-                inside = JUNCTION_TOLERANCE_MM < abs(d) < through.width_mm / 2
+                # At the wall line, too: a side hallway stopped there is walled off.
+                inside = (
+                    JUNCTION_TOLERANCE_MM < abs(d) <= through.width_mm / 2 + JUNCTION_TOLERANCE_MM
+                )
                 if through is not joining and inside and 0 < s < through.length_mm:
                     raise FloorPlanError(
                         path,
@@ -848,6 +883,17 @@ def _check_hallways(floor: Floor, path: str | Path) -> None:
                         f"ends inside hallway {through.id}, {abs(d):.0f} mm off its axis: "
                         "a hallway ends on the other's axis where they meet",
                     )
+
+
+def _axes_cross(a: Hallway, b: Hallway) -> float | None:
+    """Where along ``a`` the axis of ``b`` passes through it (neither ending there), if it
+    does."""
+    tol = JUNCTION_TOLERANCE_MM
+    (s0, d0), (s1, d1) = a.to_local(*b.start), a.to_local(*b.end)
+    if not ((d0 < -tol and d1 > tol) or (d0 > tol and d1 < tol)):
+        return None
+    s = s0 + (s1 - s0) * d0 / (d0 - d1)
+    return s if tol < s < a.length_mm - tol else None
 
 
 def _check_along(view: Floor, path: str | Path) -> None:

@@ -164,3 +164,28 @@ def test_a_surveyors_mistakes_with_hallways_are_refused(
     hallways: list[dict[str, Any]], doors: list[dict[str, Any]], problem: str
 ) -> None:
     assert problem in _error(hallways, doors)
+
+
+def test_a_crossroads_is_two_side_hallways_of_the_one_they_cross() -> None:
+    """North and south leave A at one point: each meets A, not each other."""
+    north = {"id": "N", "start": [10000, 0], "end": [10000, 6000], "width_mm": 1500}
+    floor = _floor([A, north, T_SOUTH])
+    assert sorted((m.through.id, m.joining.id, m.side) for m in floor.meetings) == [
+        ("A", "C", "right"),
+        ("A", "N", "left"),
+    ]
+    assert _hit(floor, 10000, 0, 90) == (pytest.approx(6000), "hallway N end wall")
+    assert _hit(floor, 10000, 0, -90) == (pytest.approx(8000), "hallway C end wall")
+
+
+def test_a_hallway_through_the_middle_of_another_is_refused() -> None:
+    through = {"id": "X", "start": [10000, -5000], "end": [10000, 5000], "width_mm": 1500}
+    assert "floor 1 / hallway X: crosses hallway A 10000 mm along it" in _error([A, through])
+
+
+def test_a_side_hallway_stopped_at_the_wall_line_is_refused() -> None:
+    """Its axis ends 850 mm off A's: walled off from A, it would meet nothing."""
+    at_the_wall = {**T_SOUTH, "start": [10000, -850]}
+    assert "floor 1 / hallway C: ends inside hallway A, 850 mm off its axis" in _error(
+        [A, at_the_wall]
+    )
