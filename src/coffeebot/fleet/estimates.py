@@ -13,9 +13,9 @@ from functools import cache
 
 from coffeebot.config import RobotConfig
 from coffeebot.floorplan import FloorPlan
-from coffeebot.navigation.path import route_legs
+from coffeebot.navigation.path import polyline_length_mm, route_legs
 from coffeebot.navigation.route import Place, RoutePlanner
-from coffeebot.web.eta import Pace, polyline_length_mm
+from coffeebot.web.eta import Pace
 
 
 class TravelTimes:

@@ -305,7 +305,7 @@ class MotionModule(Module):
             )
             return
         limit = min(gate.speed_limit_mm_s, self.cfg.max_speed_mm_s)
-        zone = self.zone(state.msg.pose, limit)
+        zone = self.zone(state.msg.pose, limit, None if ins is None else ins.hallway)
         if zone is not None:
             limit = zone.speed_mm_s
         command = self.controller.step(ins, state.msg.pose, now, dt, limit)
@@ -316,10 +316,15 @@ class MotionModule(Module):
             reason = f"{reason}; slow: {zone.reason}"
         self._send(ctx, command.speed_mm_s, command.yaw_rate_dps, reason, command.status)
 
-    def zone(self, pose: PoseEstimate, limit_mm_s: float) -> ZoneLimit | None:
+    def zone(
+        self, pose: PoseEstimate, limit_mm_s: float, hallway: str | None = None
+    ) -> ZoneLimit | None:
         """The slow zone of an opening that caps the speed below ``limit_mm_s`` here, if any:
-        the robot taken to drive along the hallway the way it faces."""
-        floor = self.plan.floor(pose.floor).view_near(pose.x_mm, pose.y_mm)
+        the robot taken to drive along ``hallway`` (its instruction's; None: the one it
+        stands in) the way it faces. Where hallways meet, the one it stands in may be the
+        one it is turning out of, whose side hallway it is driving into."""
+        floor = self.plan.floor(pose.floor)
+        floor = floor.view_near(pose.x_mm, pose.y_mm) if hallway is None else floor.view(hallway)
         s, d = floor.to_hallway(pose.x_mm, pose.y_mm)
         facing = math.cos(math.radians(pose.heading_deg - floor.hallway.heading_deg))
         return self.zones.limit(floor, s, d, 1.0 if facing >= 0 else -1.0, limit_mm_s)

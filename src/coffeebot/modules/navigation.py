@@ -59,8 +59,16 @@ from coffeebot.messages import (
 from coffeebot.modules.base import Module, ModuleContext
 from coffeebot.navigation.camera_blocks import Block, BlockRule, Leg, fresh_objects, leg_ends
 from coffeebot.navigation.lifecycle import MOVING, DeliveryLifecycle
-from coffeebot.navigation.path import route_legs
-from coffeebot.navigation.route import ElevatorRide, Lease, Move, Route, RoutePlanner, Step
+from coffeebot.navigation.path import nearest, route_legs
+from coffeebot.navigation.route import (
+    ElevatorRide,
+    Lease,
+    Move,
+    Place,
+    Route,
+    RoutePlanner,
+    Step,
+)
 
 POLL_S = 0.2
 """How often waits re-check the board when nothing new arrives."""
@@ -132,6 +140,8 @@ class NavigationModule(Module):
         self._on_loading_spot = False
         """A fleet's robot that came home with its next order taken and waits for the cup on
         the loading spot, holding it (:meth:`_go_home`)."""
+        self._home: Place = self.planner.base
+        """The pickup point the robot last went back to."""
 
     # --- board helpers ---------------------------------------------------------------------
 
@@ -450,15 +460,31 @@ class NavigationModule(Module):
 
     def _route_to(self, ctx: ModuleContext, room: str | None) -> Route:
         """To ``room``'s door, or (None) home: a fleet's robot to the loading spot, where
-        :meth:`_go_home` decides whether it parks."""
+        :meth:`_go_home` decides whether it parks; a single robot to the nearest pickup
+        point (fewest elevator rides, then the shortest way)."""
         pose = self._pose(ctx)
         if pose is None:
             raise DeliveryAborted("the robot does not know where it is", DeliveryProblem.LOST)
-        goal = self.planner.base if room is None else self.planner.door_place(room)
         hallway, s, leave = self.planner.where(pose.floor, pose.x_mm, pose.y_mm)
-        route = self.planner.route(
-            pose.floor, s, goal, leave, park=room is not None, hallway=hallway
-        )
+
+        def to(goal: Place) -> Route:
+            return self.planner.route(
+                pose.floor, s, goal, leave, park=room is not None, hallway=hallway
+            )
+
+        if room is not None:
+            goal = self.planner.door_place(room)
+            route = to(goal)
+        elif self.fleet:
+            goal = self.planner.base
+            route = to(goal)
+        else:
+            # A single robot waits for its next cup at the nearest pickup point.
+            routes = {place: to(place) for place in self.planner.pickup_points}
+            goal = nearest(routes, self.planner.plan, pose.floor, (pose.x_mm, pose.y_mm))
+            route = routes[goal]
+        if room is None:
+            self._home = goal
         life = self._life
         ctx.board.publish(
             ROUTE,
@@ -585,7 +611,7 @@ class NavigationModule(Module):
             ctx.log.error("could not return to base: %s", exc)
         where = "on the loading spot, for the next cup" if self._on_loading_spot else "parked"
         self._hold_still(ctx, where)
-        ctx.board.publish(ROUTE, PlannedRoute(to=self.planner.base.door.room))
+        ctx.board.publish(ROUTE, PlannedRoute(to=self._home.door.room))
 
     def _order_waiting(self, ctx: ModuleContext) -> bool:
         """Whether an order was dispatched to this robot that it has not taken up yet."""

@@ -8,11 +8,17 @@ new leg on the floor it arrives at.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import itertools
+import math
+from collections.abc import Mapping, Sequence
 
 from coffeebot.floorplan import FloorPlan
 from coffeebot.messages import MoveInstruction, RouteLeg
-from coffeebot.navigation.route import ElevatorRide, Lease, Move, Route
+from coffeebot.navigation.route import ElevatorRide, Lease, Move, Place, Route
+
+
+def polyline_length_mm(points: Sequence[tuple[float, float]]) -> float:
+    return sum(math.dist(a, b) for a, b in itertools.pairwise(points))
 
 
 def _point(plan: FloorPlan, ins: MoveInstruction) -> tuple[float, float] | None:
@@ -49,3 +55,16 @@ def route_legs(
         elif isinstance(step, Move):
             add([step])
     return [RouteLeg(floor=level, points=points) for level, points in legs]
+
+
+def nearest(
+    routes: Mapping[Place, Route], plan: FloorPlan, floor: int, start: tuple[float, float]
+) -> Place:
+    """The goal of the route with the fewest elevator rides and then the shortest lines (a
+    ride, calling the car included, takes longer than any hallway of a building)."""
+
+    def rides_and_length(key: Place) -> tuple[int, float]:
+        legs = route_legs(routes[key], plan, floor, start)
+        return len(legs) - 1, sum(polyline_length_mm(leg.points) for leg in legs)
+
+    return min(routes, key=rides_and_length)

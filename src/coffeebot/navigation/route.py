@@ -141,8 +141,14 @@ class RoutePlanner:
 
     @property
     def base(self) -> Place:
+        """The first pickup point: a fleet's base."""
         loc = self.plan.tea_room
         return Place(loc.floor.level, loc.door, inside=True)
+
+    @property
+    def pickup_points(self) -> list[Place]:
+        """Every tea room, where a single robot may wait for its next cup."""
+        return [Place(loc.floor.level, loc.door, inside=True) for loc in self.plan.tea_rooms]
 
     def door_place(self, room: str) -> Place:
         loc = self.plan.find_room(room)
@@ -366,30 +372,34 @@ class RoutePlanner:
         self, floor: Floor, s: float, door: Door
     ) -> tuple[list[Step], Floor, float]:
         """From ``s`` along ``floor``'s hallway to the hallway ``door`` opens on; and the
-        view and ``s`` it ends at. At each meeting: kept right until ``pull_over_mm``
-        short, then on the axis to ``pivot_mm`` short of the next hallway's axis, where a
-        quarter turn about the axle leaves the centre on that axis (in a lane beside the
-        wall the rear corners' sweep has little room), turned along the next hallway."""
+        view and ``s`` it ends at. Where the next hallway goes on straight (at another
+        width), in the keep-right lane through the meeting at speed. Where it leaves to a
+        side: kept right until ``pull_over_mm`` short, then on the axis to ``pivot_mm``
+        short of the next hallway's axis, where a quarter turn about the axle leaves the
+        centre on that axis (in a lane beside the wall the rear corners' sweep has little
+        room), and turned along the next hallway."""
         whole = self.plan.floor(floor.level)
         to_s = door.at_mm
         steps: list[Step] = []
         route = hops(whole, floor.hallway.id, s, whole.hallway_of(door).id, to_s)
         for index, hop in enumerate(route):
             direction = 1.0 if hop.s_mm >= s else -1.0
-            keep_right = hop.s_mm - direction * self.nav.pull_over_mm
+            here = self.travel_deg(floor, direction)
+            following = whole.view(hop.next_hallway)
+            aim = route[index + 1].s_mm if index + 1 < len(route) else to_s
+            along = self.travel_deg(following, 1.0 if aim >= hop.next_s_mm else -1.0)
+            detail = f"to hallway {hop.next_hallway}"
+            straight_on = abs(math.remainder(along - here, 360.0)) < 1.0
+            keep_right = hop.s_mm - direction * (0.0 if straight_on else self.nav.pull_over_mm)
             if (keep_right - s) * direction > 0:
                 lane = self.lane_mm(floor, direction)
-                steps.append(
-                    self._lane(floor, keep_right, lane, stop=False, detail="along the hallway")
-                )
-            detail = f"to hallway {hop.next_hallway}"
-            steps.append(
-                self._lane(floor, hop.s_mm - direction * self.pivot_mm, 0.0, detail=detail)
-            )
-            floor, s = whole.view(hop.next_hallway), hop.next_s_mm
-            aim = route[index + 1].s_mm if index + 1 < len(route) else to_s
-            along = self.travel_deg(floor, 1.0 if aim >= s else -1.0)
-            steps.append(self._turn(floor, along, f"into hallway {hop.next_hallway}"))
+                what = detail if straight_on else "along the hallway"
+                steps.append(self._lane(floor, keep_right, lane, stop=False, detail=what))
+            if not straight_on:
+                stop_at = hop.s_mm - direction * self.pivot_mm
+                steps.append(self._lane(floor, stop_at, 0.0, detail=detail))
+                steps.append(self._turn(following, along, f"into hallway {hop.next_hallway}"))
+            floor, s = following, hop.next_s_mm
         return steps, floor, s
 
     # --- the elevator in a fleet ------------------------------------------------------------

@@ -14,6 +14,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from coffeebot.messages import PlannedRoute, PoseEstimate
+from coffeebot.navigation.path import polyline_length_mm
 
 
 @dataclass(frozen=True)
@@ -26,10 +27,6 @@ class Pace:
     """Calling the car, riding and getting out."""
     pickup_timeout_s: float = 180.0
     """How long the robot waits at the door (the customer's countdown)."""
-
-
-def polyline_length_mm(points: Sequence[tuple[float, float]]) -> float:
-    return sum(math.dist(a, b) for a, b in itertools.pairwise(points))
 
 
 def remaining_on(points: Sequence[tuple[float, float]], x: float, y: float) -> float:
