@@ -28,6 +28,12 @@ DELIVERIES = [
     "floor2-box-in-lane",  # 209, round a cardboard box standing in the lane
     "floor3-elevator",  # 305 via the elevator
     "floor3-walker",  # 308 via the elevator, a person walking towards the robot
+    # Linden Hall: hallways that bend and branch.
+    "linden-bend",  # 112, round the L into the east wing
+    "linden-junction",  # 121, right at the T into the south wing
+    "linden-far-side",  # 104, past the south wing's mouth
+    "linden-other-floor",  # 205, by the elevator, where floor 2's hallway narrows
+    "linden-box-in-wing",  # 113, round a box in the east wing
 ]
 EKF_DELIVERIES = [
     "floor3-elevator",  # turns in the car, a ride, another floor
