@@ -60,7 +60,7 @@ from coffeebot.runtime.sim import build_sim
 from coffeebot.scenario.driver import ScenarioModule
 from coffeebot.sim.simulation import Simulation
 from coffeebot.web import WebModule
-from delivery import PLAN_PATH, ROOT, random_scenario  # bench/, beside this script
+from delivery import PLAN_PATH, ROOT, Building, random_scenario  # bench/, beside this script
 from nbody import best_seconds
 
 PI4_NBODY_S = 158.3
@@ -97,7 +97,7 @@ async def one_case(watched: bool, flat_out: bool = False, cameras: bool = False)
         update={"web": config.web.model_copy(update={"host": "127.0.0.1", "port": 0})}
     )
     plan = load_floorplan(PLAN_PATH)
-    scenario = random_scenario(plan, random.Random(1), 0)
+    scenario = random_scenario(Building(plan, PLAN_PATH, config), random.Random(1), 0)
     config = scenario.configure(config)
     config = config.model_copy(
         update={"cameras": config.cameras.model_copy(update={"enabled": cameras})}

@@ -3,17 +3,19 @@
     python bench/delivery.py                 # a table, for docs/benchmarks.md
     python bench/delivery.py --json          # one JSON object
     python bench/delivery.py --runs 10 --seed 7 --speed 4
+    python bench/delivery.py --floorplan floorplans/linden-hall.toml
 
 Each run is a scenario (``coffeebot.scenario``) run through the whole daemon: drivers on
 the simulated buses, perception, state, navigation, motion, the simulated elevator. The room
-is drawn from every office of the floor plan; with probability one half a static obstacle
-from the seed's set stands in the lane somewhere on the way (a cardboard box or a mail cart,
-the ones the sensors can see at 250 mm; the chairs cannot be seen and a person stepping in
-cannot be braked for, see the perception benchmark), and with probability one quarter a
-person walks along the other side of the hallway. Targets: every order delivered or failed
-with a true reason, zero collisions with the robot moving, stop error p95 <= 50 mm. The
-simulated walker avoids nothing, so a contact with the robot standing (under 20 mm/s, as
-``docs/safety.md`` counts it) is the walker's, counted apart.
+is drawn from every office of the floor plan (the CS building's unless ``--floorplan``); the
+robot starts by the first tea room's door; with probability one half a static obstacle from
+the seed's set stands in the lane somewhere on the room's hallway on the way (a cardboard
+box or a mail cart, the ones the sensors can see at 250 mm; the chairs cannot be seen and a
+person stepping in cannot be braked for, see the perception benchmark), and with probability
+one quarter a person walks along the other side of that hallway. Targets: every order
+delivered or failed with a true reason, zero collisions with the robot moving, stop error
+p95 <= 50 mm. The simulated walker avoids nothing, so a contact with the robot standing
+(under 20 mm/s, as ``docs/safety.md`` counts it) is the walker's, counted apart.
 """
 
 from __future__ import annotations
@@ -29,8 +31,10 @@ from typing import Any
 
 import numpy as np
 
-from coffeebot.config import load_robot_config
+from coffeebot.config import RobotConfig, load_robot_config
 from coffeebot.floorplan import FloorPlan, load_floorplan
+from coffeebot.navigation.hallway_graph import hops
+from coffeebot.navigation.route import Move, RoutePlanner
 from coffeebot.scenario.run import run_scenario
 from coffeebot.scenario.spec import OrderSpec, Scenario, StartPose
 from coffeebot.sim.world import ObstacleSpec
@@ -39,27 +43,94 @@ from coffeebot.sim.world.obstacles import ObstacleKind
 
 ROOT = Path(__file__).resolve().parents[1]
 PLAN_PATH = ROOT / "floorplans" / "cs-building.toml"
-START = StartPose(floor=2, x_mm=41500, y_mm=295, heading_deg=180)
-"""By the tea room door, facing down the hallway (floor 2 rooms)."""
-START_ELEVATOR = START.model_copy(update={"heading_deg": 0.0})
-"""Facing the elevator end (floor 3 rooms): no turn on the spot beside the wall."""
 LANE_OBSTACLES: tuple[ObstacleKind, ...] = ("cardboard_box", "mail_cart")
+WALL_GAP_MM = {"cardboard_box": 250.0, "mail_cart": 270.0}
+"""How far an obstacle's centre stands from the hallway's wall line: against the wall, in the
+lane of a robot keeping to that side."""
+START_BEFORE_DOOR_MM = 500.0
+"""The robot starts this far short of the tea room's door (less ``s``)."""
 
 
-def random_scenario(plan: FloorPlan, rng: random.Random, index: int) -> Scenario:
+class Building:
+    """What a run needs of a floor plan: its routes, and where the robot starts: in the
+    hallway by the first tea room's door, in the lane across from it."""
+
+    def __init__(self, plan: FloorPlan, path: Path, config: RobotConfig) -> None:
+        self.plan = plan
+        self.path = path
+        self.planner = RoutePlanner(
+            plan,
+            config.motion,
+            config.navigation,
+            config.geometry.width_mm,
+            body_length_mm=config.geometry.length_mm,
+            pivot_mm=config.motor.axle_x_mm,
+        )
+        whole, door = plan.tea_room
+        self.start_floor = whole.view_of(door)
+        self.start_s = door.at_mm - START_BEFORE_DOOR_MM
+        self.lane = -self.planner.side_lane_mm(self.start_floor, door)
+
+    def start(self, room: str) -> StartPose:
+        """Facing the way the route to ``room`` sets off: no turn on the spot beside a wall."""
+        floor = self.start_floor
+        route = self.planner.route(
+            floor.level, self.start_s, self.planner.door_place(room), hallway=floor.hallway.id
+        )
+        first = next(
+            s.instruction
+            for s in route.steps
+            if isinstance(s, Move) and s.instruction.target_s_mm is not None
+        )
+        assert first.target_s_mm is not None
+        direction = 1.0 if first.target_s_mm >= self.start_s else -1.0
+        x, y = floor.from_hallway(self.start_s, self.lane)
+        return StartPose(
+            floor=floor.level,
+            x_mm=x,
+            y_mm=y,
+            heading_deg=self.planner.travel_deg(floor, direction),
+        )
+
+    def entry_s(self, room: str) -> float:
+        """Where along the room's hallway the robot comes into it: the tea room's door, the
+        elevator's, or where it turns in from another hallway."""
+        loc = self.plan.find_room(room)
+        floor = loc.floor.view_of(loc.door)
+        tea = self.plan.tea_room
+        if loc.floor.level == tea.floor.level:
+            came_from, s = self.start_floor.hallway.id, tea.door.at_mm
+        else:
+            assert loc.floor.elevator is not None
+            came_from = loc.floor.hallway_of(loc.floor.elevator).id
+            s = loc.floor.elevator.at_mm
+        way = hops(loc.floor, came_from, s, floor.hallway.id, loc.door.at_mm)
+        return way[-1].next_s_mm if way else s
+
+
+def random_scenario(building: Building, rng: random.Random, index: int) -> Scenario:
+    plan = building.plan
     room = rng.choice(plan.rooms)
     loc = plan.find_room(room)
-    floor = loc.floor
+    floor = loc.floor.view_of(loc.door)
+    half = floor.hallway.width_mm / 2
+    length = floor.hallway.length_mm
     obstacles: list[ObstacleSpec] = []
-    # Between the start (or the elevator) and the door, away from both ends of the stretch.
-    far = max(loc.door.at_mm + 3000, 8000)
-    if rng.random() < 0.5 and far < 37000:
+    # Between where the robot comes into the room's hallway and the door, away from both,
+    # and as far from the hallway's end beyond the door as the walker turns.
+    walk = min(8000.0, length / 4)
+    entry = building.entry_s(room)
+    towards = 1.0 if entry >= loc.door.at_mm else -1.0
+    beyond = walk if towards > 0 else length - walk
+    near = towards * max(towards * (loc.door.at_mm + towards * 3000), towards * beyond)
+    far = entry - towards * 5000
+    if rng.random() < 0.5 and (far - near) * towards > 0:
         kind = rng.choice(LANE_OBSTACLES)
-        s = rng.uniform(far, 37000)
-        x, y = floor.from_hallway(s, 600 if kind == "cardboard_box" else 580)
+        s = rng.uniform(min(near, far), max(near, far))
+        x, y = floor.from_hallway(s, half - WALL_GAP_MM[kind])
         obstacles.append(ObstacleSpec(id=kind, kind=kind, floor=floor.level, x_mm=x, y_mm=y))
     if rng.random() < 0.25:
-        a, b = floor.from_hallway(8000, -450), floor.from_hallway(36000, -450)
+        a, b = floor.from_hallway(walk, 400 - half), floor.from_hallway(length - walk, 400 - half)
         obstacles.append(
             ObstacleSpec(
                 id="person",
@@ -72,24 +143,28 @@ def random_scenario(plan: FloorPlan, rng: random.Random, index: int) -> Scenario
                 path_mode="back_and_forth",
             )
         )
+    same_hallway = floor.level == building.start_floor.level and (
+        floor.hallway.id == building.start_floor.hallway.id
+    )
     return Scenario(
         name=f"run{index}-{room}" + "".join(f"-{o.kind}" for o in obstacles),
-        floorplan=PLAN_PATH,
+        floorplan=building.path,
         seed=rng.randrange(1_000_000),
-        time_limit_s=300 if floor.level != START.floor else 200,
-        start=START if floor.level == START.floor else START_ELEVATOR,
+        time_limit_s=200 if same_hallway else 300,
+        start=building.start(room),
         orders=[OrderSpec(room=room, at_s=2.0)],
         obstacles=obstacles,
     )
 
 
-async def bench(runs: int, seed: int, speed: float) -> dict[str, Any]:
+async def bench(runs: int, seed: int, speed: float, plan_path: Path) -> dict[str, Any]:
     config = load_robot_config(ROOT / "boards" / "coffeebot-v1.toml")
-    plan = load_floorplan(PLAN_PATH)
+    plan = load_floorplan(plan_path)
+    building = Building(plan, plan_path, config)
     rng = random.Random(seed)
     rows: list[dict[str, Any]] = []
     for i in range(runs):
-        scenario = random_scenario(plan, rng, i)
+        scenario = random_scenario(building, rng, i)
         report = await run_scenario(config, scenario, plan, speed=speed)
         order = report.orders[0]
         delivery_s = None
@@ -172,10 +247,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--runs", type=int, default=8)
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--speed", type=float, default=4.0, help="simulated time per wall time")
+    parser.add_argument("--floorplan", type=Path, default=PLAN_PATH, help="the building")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
     started = time.monotonic()
-    result = asyncio.run(bench(args.runs, args.seed, args.speed))
+    result = asyncio.run(bench(args.runs, args.seed, args.speed, args.floorplan.resolve()))
     if args.json:
         print(json.dumps({k: v for k, v in result.items() if k != "rows"}))
     else:
