@@ -90,6 +90,9 @@ def test_to_the_other_floor_along_the_hallway_that_goes_on_narrower() -> None:
     assert lanes[0][0] == "main" and lanes[-1] == ("west", 9000)
     through = next(m for m in after if m.detail == "to hallway west")
     assert (through.hallway, through.target_s_mm, through.stop) == ("main", 16000, False)
+    # In the narrower hallway's lane before the step (west is 1500 mm wide, main 2000): keep
+    # right (north, d < 0 along "main" surveyed westwards), 300 mm from the wall.
+    assert through.lane_mm == pytest.approx(-(750 - 300 - CONFIG.geometry.width_mm / 2))
     assert not any(m.detail == "into hallway west" for m in after)
 
 

@@ -373,11 +373,12 @@ class RoutePlanner:
     ) -> tuple[list[Step], Floor, float]:
         """From ``s`` along ``floor``'s hallway to the hallway ``door`` opens on; and the
         view and ``s`` it ends at. Where the next hallway goes on straight (at another
-        width), in the keep-right lane through the meeting at speed. Where it leaves to a
-        side: kept right until ``pull_over_mm`` short, then on the axis to ``pivot_mm``
-        short of the next hallway's axis, where a quarter turn about the axle leaves the
-        centre on that axis (in a lane beside the wall the rear corners' sweep has little
-        room), and turned along the next hallway."""
+        width), through the meeting at speed, in the narrower hallway's keep-right lane from
+        ``pull_over_mm`` short of it. Where it leaves to a side: kept right until
+        ``pull_over_mm`` short, then on the axis to ``pivot_mm`` short of the next
+        hallway's axis, where a quarter turn about the axle leaves the centre on that axis
+        (in a lane beside the wall the rear corners' sweep has little room), and turned
+        along the next hallway."""
         whole = self.plan.floor(floor.level)
         to_s = door.at_mm
         steps: list[Step] = []
@@ -390,12 +391,22 @@ class RoutePlanner:
             along = self.travel_deg(following, 1.0 if aim >= hop.next_s_mm else -1.0)
             detail = f"to hallway {hop.next_hallway}"
             straight_on = abs(math.remainder(along - here, 360.0)) < 1.0
-            keep_right = hop.s_mm - direction * (0.0 if straight_on else self.nav.pull_over_mm)
+            keep_right = hop.s_mm - direction * self.nav.pull_over_mm
+            lane = self.lane_mm(floor, direction)
             if (keep_right - s) * direction > 0:
-                lane = self.lane_mm(floor, direction)
-                what = detail if straight_on else "along the hallway"
-                steps.append(self._lane(floor, keep_right, lane, stop=False, detail=what))
-            if not straight_on:
+                steps.append(
+                    self._lane(floor, keep_right, lane, stop=False, detail="along the hallway")
+                )
+            if straight_on:
+                # Into the narrower hallway's lane before the step: changing lanes past it,
+                # the rear swung about the axle into the step's corner.
+                x, y = following.from_hallway(
+                    hop.next_s_mm, self.lane_mm(following, 1.0 if aim >= hop.next_s_mm else -1.0)
+                )
+                there = floor.to_hallway(x, y)[1]
+                narrower = there if abs(there) < abs(lane) else lane
+                steps.append(self._lane(floor, hop.s_mm, narrower, stop=False, detail=detail))
+            else:
                 stop_at = hop.s_mm - direction * self.pivot_mm
                 steps.append(self._lane(floor, stop_at, 0.0, detail=detail))
                 steps.append(self._turn(following, along, f"into hallway {hop.next_hallway}"))
