@@ -668,12 +668,20 @@ class FloorPlan(_Model):
         raise KeyError(f"no floor {level}; floors are {[f.level for f in self.floors]}")
 
     def find_room(self, room: str) -> RoomLocation:
-        """The floor and door of a room, by its name ("205", "Tea room")."""
-        for floor in self.floors:
-            for door in floor.doors:
-                if door.room == room:
-                    return RoomLocation(floor, door)
-        raise KeyError(f"no room {room!r} in floor plan {self.name!r}")
+        """The floor and (first listed) door of a room, by its name ("205", "Tea room")."""
+        return self.room_doors(room)[0]
+
+    def room_doors(self, room: str) -> list[RoomLocation]:
+        """Every door of a room (a room may have several, on one floor)."""
+        found = [
+            RoomLocation(floor, door)
+            for floor in self.floors
+            for door in floor.doors
+            if door.room == room
+        ]
+        if not found:
+            raise KeyError(f"no room {room!r} in floor plan {self.name!r}")
+        return found
 
     @property
     def tea_rooms(self) -> list[RoomLocation]:
@@ -695,13 +703,14 @@ class FloorPlan(_Model):
     @property
     def rooms(self) -> list[str]:
         """Rooms a delivery can go to: every office door, in floor then hallway order."""
-        return [
+        doors = [
             d.room
             for f in self.floors
             for h in f.hallways
             for d in sorted(f.view(h.id).features(), key=lambda d: d.at_mm)
             if isinstance(d, Door) and d.kind == "office"
         ]
+        return list(dict.fromkeys(doors))  # a room of two doors once
 
 
 # --- loading and validation -----------------------------------------------------------------
@@ -818,10 +827,29 @@ def _check_consistency(plan: FloorPlan, path: str | Path) -> None:
         raise FloorPlanError(
             path, "floor plan", "needs a door of kind 'tea_room' (where cups are picked up)"
         )
-    rooms = [d.room for f in plan.floors for d in f.doors if d.kind != "elevator"]
-    for room in rooms:
-        if rooms.count(room) > 1:
-            raise FloorPlanError(path, f"room {room}", "has more than one door")
+    first_doors: dict[str, tuple[int, Door]] = {}
+    for floor in plan.floors:
+        for door in floor.doors:
+            if door.kind == "elevator":
+                continue
+            if door.room not in first_doors:
+                first_doors[door.room] = (floor.level, door)
+                continue
+            level, first = first_doors[door.room]
+            if level != floor.level:
+                raise FloorPlanError(
+                    path,
+                    f"floor {floor.level} / door {door.id}",
+                    f"room: {door.room!r} has a door on floor {level} too: a room's doors "
+                    "are on one floor (name the rooms apart)",
+                )
+            if door.kind != first.kind:
+                raise FloorPlanError(
+                    path,
+                    f"floor {floor.level} / door {door.id}",
+                    f"kind: {door.kind!r}, but {door.room!r}'s door {first.id} is "
+                    f"{first.kind!r}: a room's doors are of one kind",
+                )
 
 
 def _check_hallways(floor: Floor, path: str | Path) -> None:

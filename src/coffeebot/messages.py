@@ -330,10 +330,10 @@ class MoveInstruction(Message):
     ``id`` changes with every new instruction so motion knows a repeat from a new goal.
     ``follow_lane``: drive along ``hallway`` (None: the first) of ``floor`` to ``target_s_mm``
     (that hallway's along-hallway coordinate), ``lane_mm`` to the left of its axis (None:
-    keep right at the configured wall distance); with ``target_room`` set, the stop is
-    refined by that door's detection. ``drive_to``: straight to ``x_mm``/``y_mm`` (through
-    a doorway, into the elevator car). ``turn``: on the spot to ``heading_deg``.
-    ``stop``/``wait``: stand still.
+    keep right at the configured wall distance); with ``target_door`` set (a door's id),
+    the stop is refined by that door's detection. ``drive_to``: straight to
+    ``x_mm``/``y_mm`` (through a doorway, into the elevator car). ``turn``: on the spot to
+    ``heading_deg``. ``stop``/``wait``: stand still.
     ``stop``: False passes ``target_s_mm`` at speed (a lane change on the way), True stops
     there. ``avoid``: whether motion may leave the lane around a static obstacle.
     """
@@ -349,7 +349,7 @@ class MoveInstruction(Message):
     heading_deg: float | None = None
     speed_mm_s: float = 0.0
     stop: bool = True
-    target_room: str | None = None
+    target_door: str | None = None
     avoid: bool = True
     detail: str = ""
 

@@ -72,7 +72,7 @@ def stop_in_lane(
         lane_mm=lane_mm,
         stop=True,
         avoid=True,
-        target_room=room,
+        target_door=room,
     )
     return [controller.step(instruction, pose, 3.0 + 0.05 * k, 0.05, 500.0) for k in range(5)]
 

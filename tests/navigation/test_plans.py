@@ -54,7 +54,7 @@ def test_route_on_the_base_floor_leaves_the_tea_room_and_stops_at_the_door() -> 
     assert not any(isinstance(s, ElevatorRide) for s in route.steps)
     assert steps[0].instruction.action == "drive_to"
     last = steps[-1].instruction
-    assert last.action == "follow_lane" and last.target_room == "205" and last.stop
+    assert last.action == "follow_lane" and last.target_door == "205" and last.stop
     assert last.target_s_mm == PLAN.find_room("205").door.at_mm
     # 205 is on the left: the robot pulls over to that side for the last stretch.
     assert last.lane_mm > 0

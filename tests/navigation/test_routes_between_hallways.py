@@ -56,7 +56,7 @@ def test_round_a_bend_the_robot_turns_where_the_axes_meet() -> None:
     assert (corner.hallway, corner.target_s_mm, corner.lane_mm) == ("main", 32000 - PIVOT, 0.0)
     assert (turn.action, turn.heading_deg) == ("turn", pytest.approx(90.0))
     assert all(m.hallway == "east" for m in along if m.action == "follow_lane")
-    assert along[-1].target_room == "112" and along[-1].target_s_mm == 6500
+    assert along[-1].target_door == "112" and along[-1].target_s_mm == 6500
     # 112 is on the east wing's right: the last stretch in the right lane (d < 0).
     assert along[-1].lane_mm is not None and along[-1].lane_mm < 0
 
@@ -107,3 +107,18 @@ def test_a_single_robot_goes_back_to_the_nearer_pickup_point() -> None:
             for place in PLANNER.pickup_points
         }
         assert nearest(routes, LINDEN, level, (x, y)).door.room == home
+
+
+def test_to_a_room_with_two_doors_the_robot_goes_to_the_nearer() -> None:
+    """105 opens on the main hallway and, round the corner, on the east wing."""
+    assert [p.door.id for p in PLANNER.door_places("105")] == ["105", "105-east"]
+    for x, y, door in ((4500, -445, "105"), (32240, 10500, "105-east")):
+        where = PLANNER.where(1, x, y)
+        routes = {
+            place: PLANNER.route(1, where.s_mm, place, where.leave, hallway=where.hallway)
+            for place in PLANNER.door_places("105")
+        }
+        goal = nearest(routes, LINDEN, 1, (x, y))
+        assert goal.door.id == door
+        last = instructions(routes[goal].steps)[-1]
+        assert last.target_door == door

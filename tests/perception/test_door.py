@@ -30,7 +30,7 @@ def drive(
     seed: int = 1,
 ) -> list[DoorEvent]:
     """Drive straight along the hallway from ``start`` to ``end`` and collect door events."""
-    detector = DoorDetector(robot().tof.sensors, DoorConfig(), target_room=target)
+    detector = DoorDetector(robot().tof.sensors, DoorConfig(), target_door=target)
     rng = np.random.default_rng(seed)
     heading = 0.0 if end > start else 180.0
     step = speed / RATE_HZ * (1 if end > start else -1)
@@ -148,6 +148,23 @@ def test_arrived_at_target_door() -> None:
     arrived = [e.room for e in events if e.arrived_at_target]
     assert arrived == ["104"]
     assert "102" in [e.room for e in events]
+
+
+def test_of_a_room_with_two_doors_only_the_target_door_is_arrived_at() -> None:
+    """Room 104 has a second door ("104b", across the hallway 3 m before the first):
+    passing it is not arriving."""
+    doors = [
+        {"room": "102", "side": "right", "at_mm": 6000},
+        {"id": "104b", "room": "104", "side": "left", "at_mm": 9000},
+        {"room": "104", "side": "right", "at_mm": 12000},
+        {"room": "tea", "side": "left", "at_mm": 15000, "kind": "tea_room"},
+    ]
+    floor = hallway_floor(doors=doors)
+    events = drive(floor, start=4500, end=13000, speed=500, target="104")
+    assert [(e.room, e.arrived_at_target) for e in events if e.room == "104"] == [
+        ("104", False),
+        ("104", True),
+    ]
 
 
 def test_no_readings_while_standing_still() -> None:

@@ -483,3 +483,13 @@ def test_a_camera_whose_calibration_nothing_checks_is_a_warning(
         ("floor 1 / camera c1", "marks: 4"),
         ("floor 1 / camera c2", "marks: none"),
     ]
+
+
+def test_a_rooms_doors_on_two_floors_are_refused(
+    plan_dict: Callable[..., dict[str, Any]],
+) -> None:
+    raw = _two_floors(plan_dict)
+    raw["floors"][1]["doors"].append({"room": "101", "side": "right", "at_mm": 5000})
+    error = _error(raw)
+    assert error.element == "floor 2 / door 101"
+    assert error.problem.startswith("room: '101' has a door on floor 1 too")

@@ -189,3 +189,28 @@ def test_a_side_hallway_stopped_at_the_wall_line_is_refused() -> None:
     assert "floor 1 / hallway C: ends inside hallway A, 850 mm off its axis" in _error(
         [A, at_the_wall]
     )
+
+
+def test_a_room_may_have_two_doors_on_one_floor() -> None:
+    doors = [
+        {"room": "B1", "side": "right", "at_mm": 5000, "hallway": "B"},
+        {"id": "B1-side", "room": "B1", "side": "right", "at_mm": 18000, "hallway": "A"},
+    ]
+    floor = _floor([A, L_NORTH], doors)
+    plan = parse_floorplan({"floors": [floor.model_dump(exclude_defaults=True) | {"level": 1}]})
+    assert [loc.door.id for loc in plan.room_doors("B1")] == ["B1", "B1-side"]
+    assert plan.rooms == ["B1"] and plan.find_room("B1").door.id == "B1"
+
+
+@pytest.mark.parametrize(
+    ("second", "problem"),
+    [
+        ({"kind": "other"}, "kind: 'other', but 'B1''s door B1 is 'office'"),
+    ],
+)
+def test_a_rooms_doors_are_of_one_kind(second: dict[str, Any], problem: str) -> None:
+    doors = [
+        {"room": "B1", "side": "right", "at_mm": 5000, "hallway": "B"},
+        {"id": "B1-side", "room": "B1", "side": "right", "at_mm": 18000, "hallway": "A", **second},
+    ]
+    assert problem in _error([A, L_NORTH], doors)

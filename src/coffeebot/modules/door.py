@@ -26,13 +26,19 @@ class DoorModule(Module):
         )
         self.scan_rate_hz = config.tof.scan_rate_hz or DEFAULT_SCAN_RATE_HZ
 
-    def _target_room(self, ctx: ModuleContext) -> str | None:
-        """Navigation's target if it names one, else the room of the dispatched order."""
+    def _target_door(self, ctx: ModuleContext) -> str | None:
+        """Navigation's target if it names one, else the (first) door of the dispatched
+        order's room."""
         instruction = ctx.board.latest(MOVE_INSTRUCTION)
-        if instruction is not None and instruction.msg.target_room is not None:
-            return instruction.msg.target_room
+        if instruction is not None and instruction.msg.target_door is not None:
+            return instruction.msg.target_door
         dispatch = ctx.board.latest(ORDER_DISPATCH)
-        return None if dispatch is None else dispatch.msg.room
+        if dispatch is None:
+            return None
+        try:
+            return self.plan.find_room(dispatch.msg.room).door.id
+        except KeyError:
+            return None
 
     async def run(self, ctx: ModuleContext) -> None:
         self.detector.reset()
@@ -46,7 +52,7 @@ class DoorModule(Module):
                 previous_start = scan.cycle_start_s
                 state = ctx.board.latest(CURRENT_STATE)
                 pose = state.msg.pose if state is not None and state.msg.pose.initialised else None
-                self.detector.target_room = self._target_room(ctx)
+                self.detector.target_door = self._target_door(ctx)
                 events = self.detector.update(
                     scan,
                     envelope.seq,

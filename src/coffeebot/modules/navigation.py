@@ -303,7 +303,7 @@ class NavigationModule(Module):
                 self.config.motion.stop_tolerance_mm
             ):
                 held_at = current.stop_s_mm
-                hold = {"target_s_mm": held_at, "stop": True, "target_room": None}
+                hold = {"target_s_mm": held_at, "stop": True, "target_door": None}
                 detail = f"holding short of {current.what}"
                 self._instruct(ctx, ins.model_copy(update={**hold, "detail": detail}))
             waited = ctx.clock.now() - since
@@ -459,9 +459,9 @@ class NavigationModule(Module):
     # --- deliveries ------------------------------------------------------------------------
 
     def _route_to(self, ctx: ModuleContext, room: str | None) -> Route:
-        """To ``room``'s door, or (None) home: a fleet's robot to the loading spot, where
-        :meth:`_go_home` decides whether it parks; a single robot to the nearest pickup
-        point (fewest elevator rides, then the shortest way)."""
+        """To ``room``'s nearest door, or (None) home: a fleet's robot to the loading spot,
+        where :meth:`_go_home` decides whether it parks; a single robot to the nearest
+        pickup point (nearest: fewest elevator rides, then the shortest way)."""
         pose = self._pose(ctx)
         if pose is None:
             raise DeliveryAborted("the robot does not know where it is", DeliveryProblem.LOST)
@@ -473,16 +473,14 @@ class NavigationModule(Module):
             )
 
         if room is not None:
-            goal = self.planner.door_place(room)
-            route = to(goal)
+            goals = self.planner.door_places(room)  # a room may have two doors
         elif self.fleet:
-            goal = self.planner.base
-            route = to(goal)
+            goals = [self.planner.base]
         else:
-            # A single robot waits for its next cup at the nearest pickup point.
-            routes = {place: to(place) for place in self.planner.pickup_points}
-            goal = nearest(routes, self.planner.plan, pose.floor, (pose.x_mm, pose.y_mm))
-            route = routes[goal]
+            goals = self.planner.pickup_points  # a single robot's cup at the nearest
+        routes = {place: to(place) for place in goals}
+        goal = nearest(routes, self.planner.plan, pose.floor, (pose.x_mm, pose.y_mm))
+        route = routes[goal]
         if room is None:
             self._home = goal
         life = self._life

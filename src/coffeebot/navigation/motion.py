@@ -435,7 +435,7 @@ class MotionController:
             return self._turn_into_lane(ins, floor, pose, travel, now, dt, limit, remaining)
         self._room_from = None
         cruise = ins.speed_mm_s or cfg.cruise_speed_mm_s
-        approach = cfg.approach_mm if ins.target_room is not None else 0.0
+        approach = cfg.approach_mm if ins.target_door is not None else 0.0
         target = self.profile.target(
             remaining,
             cruise,
@@ -455,7 +455,7 @@ class MotionController:
         horizon = remaining + self.detour.keep_distance_mm() if ins.stop else None
         # A stop that is not a door's (where the robot turns, or waits its turn) is made in
         # the lane: one that ended going round stood off it, its turn refused for the wall.
-        in_lane_by = ins.target_s_mm if ins.stop and ins.target_room is None else None
+        in_lane_by = ins.target_s_mm if ins.stop and ins.target_door is None else None
         sighting = self.detour.update(
             floor, s, d, lane, direction, ins.avoid, now, horizon, in_lane_by
         )

@@ -151,8 +151,15 @@ class RoutePlanner:
         return [Place(loc.floor.level, loc.door, inside=True) for loc in self.plan.tea_rooms]
 
     def door_place(self, room: str) -> Place:
+        """In the hallway at ``room``'s (first) door."""
         loc = self.plan.find_room(room)
         return Place(loc.floor.level, loc.door, inside=False)
+
+    def door_places(self, room: str) -> list[Place]:
+        """In the hallway at each of ``room``'s doors."""
+        return [
+            Place(loc.floor.level, loc.door, inside=False) for loc in self.plan.room_doors(room)
+        ]
 
     # --- geometry --------------------------------------------------------------------------
 
@@ -205,9 +212,11 @@ class RoutePlanner:
         *,
         speed: float | None = None,
         stop: bool = True,
-        room: str | None = None,
+        door: Door | None = None,
         detail: str,
     ) -> Move:
+        """Along ``floor``'s hallway to ``to_s`` in ``lane``; towards ``door``, the stop
+        refined by that door's detection."""
         return Move(
             MoveInstruction(
                 action="follow_lane",
@@ -217,7 +226,7 @@ class RoutePlanner:
                 lane_mm=lane,
                 speed_mm_s=speed or self.motion.cruise_speed_mm_s,
                 stop=stop,
-                target_room=room,
+                target_door=None if door is None else door.id,
                 detail=detail,
             )
         )
@@ -725,7 +734,7 @@ class RoutePlanner:
                     floor,
                     turn_at if goal.inside else door.at_mm,
                     lane,
-                    room=None if goal.inside else door.room,
+                    door=None if goal.inside else door,
                     detail=f"to {door.room}",
                 )
             )

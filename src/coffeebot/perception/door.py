@@ -173,12 +173,12 @@ class DoorDetector:
         sensors: Iterable[TofSensorConfig],
         cfg: DoorConfig,
         half_fov_deg: float = 0.0,
-        target_room: str | None = None,
+        target_door: str | None = None,
     ) -> None:
         self.cfg = cfg
         self.half_fov_deg = half_fov_deg
         """Half the sensors' cone: how far a recess edge blurs across the wall it is on."""
-        self.target_room = target_room
+        self.target_door = target_door
         self.tracks = {
             s.id: _Track(s, 2 * cfg.max_readings_per_door)
             for s in sensors
@@ -345,7 +345,7 @@ class DoorDetector:
                 plan_x_mm=plan_x,
                 plan_y_mm=plan_y,
                 along_correction_mm=correction,
-                arrived_at_target=room is not None and room == self.target_room,
+                arrived_at_target=isinstance(feature, Door) and feature.id == self.target_door,
             )
         ]
 

@@ -235,14 +235,18 @@ class ScenarioModule(Module):
             track.delivered_at_s = t
 
     def _stop_error_mm(self, room: str) -> float | None:
-        """How far along the hallway the robot stands from the door's centre (truth)."""
-        floor, door = self.plan.find_room(room)
+        """How far along its hallway the robot stands from the centre of the room's door it
+        stopped at (the nearest, of a room with two; truth)."""
+        doors = self.plan.room_doors(room)
         with self.sim.lock:
             robot = self.sim.robot
-            if robot.floor_level != floor.level:
-                return None
-            s, _ = floor.view_of(door).to_hallway(robot.pose.x_mm, robot.pose.y_mm)
-        return abs(s - door.at_mm)
+            x, y, level = robot.pose.x_mm, robot.pose.y_mm, robot.floor_level
+        errors = [
+            abs(floor.view_of(door).to_hallway(x, y)[0] - door.at_mm)
+            for floor, door in doors
+            if floor.level == level and math.dist(floor.behind_door(door, 0.0), (x, y)) < 5000
+        ]
+        return min(errors, default=None)
 
     def report(self) -> ScenarioReport:
         """The run so far; ``orders`` as last seen on the board."""
