@@ -228,6 +228,33 @@ class Camera(_Model):
     )
 
 
+class Frame(_Model):
+    """A door frame across a hallway, or a fire door held open in one: two jambs standing
+    in from the walls, ``clear_width_mm`` apart about the axis, ``depth_mm`` thick along
+    the hallway. A fire door's two leaves stand folded back against the walls on the side
+    of increasing ``s`` (``opens = "end"``) or the other (``"start"``)."""
+
+    id: str
+    hallway: str | None = Field(None, description="the hallway's id (a floor of one: none)")
+    at_mm: Coordinate = Field(description="the frame's centre along the hallway")
+    clear_width_mm: Size = Field(description="between the jambs")
+    depth_mm: StrictFloat = Field(150.0, gt=0, le=2000)
+    kind: Literal["frame", "fire_door"] = "frame"
+    opens: Literal["start", "end"] = "end"
+    leaf_mm: StrictFloat = Field(60.0, gt=0, le=300, description="a fire door leaf's thickness")
+
+    @property
+    def span(self) -> tuple[float, float]:
+        """Along the hallway: the jambs and, for a fire door, the leaves folded back."""
+        lo, hi = self.at_mm - self.depth_mm / 2, self.at_mm + self.depth_mm / 2
+        if self.kind == "fire_door":
+            if self.opens == "end":
+                hi += self.clear_width_mm / 2
+            else:
+                lo -= self.clear_width_mm / 2
+        return lo, hi
+
+
 class AngleZone(_Model):
     """A stretch of hallway where both walls are flat, so side sensors can measure heading."""
 
@@ -327,6 +354,8 @@ class Floor(_Model):
     parking: list[ParkingSpot] = []
     """A fleet's robots' places to wait, one each (in the tea room's floor)."""
     cameras: list[Camera] = []
+    frames: list[Frame] = []
+    """Door frames and fire doors across a hallway."""
     _focus: int = PrivateAttr(0)
 
     @model_validator(mode="before")
@@ -383,17 +412,17 @@ class Floor(_Model):
             return self
         return self.view(min(self.hallways, key=outside).id)
 
-    def view_of(self, feature: Door | Opening | AngleZone) -> Floor:
+    def view_of(self, feature: Door | Opening | AngleZone | Frame) -> Floor:
         """The view of the hallway a door, opening or angle zone lies along."""
         return self.view(self.hallway_of(feature).id)
 
-    def hallway_of(self, feature: Door | Opening | AngleZone) -> Hallway:
+    def hallway_of(self, feature: Door | Opening | AngleZone | Frame) -> Hallway:
         """The hallway a door, opening or angle zone lies along."""
         if feature.hallway is None:
             return self.hallways[0]
         return next(h for h in self.hallways if h.id == feature.hallway)
 
-    def _lies_along(self, feature: Door | Opening | AngleZone, hallway: Hallway) -> bool:
+    def _lies_along(self, feature: Door | Opening | AngleZone | Frame, hallway: Hallway) -> bool:
         return (feature.hallway or self.hallways[0].id) == hallway.id
 
     # --- hallway frame ---------------------------------------------------------------------
@@ -523,6 +552,12 @@ class Floor(_Model):
             key=lambda f: f.at_mm,
         )
 
+    def frames_along(self) -> list[Frame]:
+        """The door frames and fire doors across :attr:`hallway`, ordered along it."""
+        return sorted(
+            (f for f in self.frames if self._lies_along(f, self.hallway)), key=lambda f: f.at_mm
+        )
+
     def feature_at(self, s_mm: float, side: Side, margin_mm: float = 0.0) -> Door | Opening | None:
         """The door or opening whose span (widened by ``margin_mm``) covers ``s`` on a side."""
         for feature in self.features(side):
@@ -635,10 +670,34 @@ class Floor(_Model):
                         yield seg(element, (lo, far), (hi, far))
             if cursor < hi_mm:
                 yield seg(f"{name} {side} wall", (cursor, wall_d), (hi_mm, wall_d))
+        for frame in self.frames:
+            if self._lies_along(frame, hallway):
+                yield from self._frame_segments(hallway, frame)
         if not start_open:
             yield seg(f"{name} start wall", (lo_mm, -half), (lo_mm, half))
         if not end_open:
             yield seg(f"{name} end wall", (hi_mm, -half), (hi_mm, half))
+
+    def _frame_segments(self, hallway: Hallway, frame: Frame) -> Iterator[WallSegment]:
+        """A frame's two jambs, from the wall lines in to its opening; a fire door's leaves
+        folded back flat against the walls beside it."""
+        half, inner = hallway.width_mm / 2, frame.clear_width_mm / 2
+        lo, hi = frame.at_mm - frame.depth_mm / 2, frame.at_mm + frame.depth_mm / 2
+        h = self.wall_height_mm
+
+        def box(
+            element: str, s0: float, s1: float, d_wall: float, d_in: float
+        ) -> Iterator[WallSegment]:
+            corners = [(s0, d_wall), (s0, d_in), (s1, d_in), (s1, d_wall)]
+            for a, b in itertools.pairwise(corners):
+                yield WallSegment(element, *hallway.from_local(*a), *hallway.from_local(*b), 0.0, h)
+
+        for sign in (1.0, -1.0):
+            yield from box(f"frame {frame.id} jamb", lo, hi, sign * half, sign * inner)
+            if frame.kind == "fire_door":
+                s0, s1 = (hi, hi + inner) if frame.opens == "end" else (lo - inner, lo)
+                d_in = sign * (half - frame.leaf_mm)
+                yield from box(f"fire door {frame.id} leaf", s0, s1, sign * half, d_in)
 
     def _width_steps(self, meeting: Meeting) -> Iterator[WallSegment]:
         """Where a hallway goes straight on at another width: the step in each wall."""
@@ -761,6 +820,7 @@ _ELEMENT_NAMES = {
     "anchors": "anchor",
     "cameras": "camera",
     "marks": "mark",
+    "frames": "frame",
 }
 
 
@@ -799,12 +859,13 @@ def _check_consistency(plan: FloorPlan, path: str | Path) -> None:
     for floor in plan.floors:
         where = f"floor {floor.level}"
         _check_hallways(floor, path)
-        groups: list[tuple[str, Sequence[Door | Opening | Wall | AngleZone | Anchor]]] = [
+        groups: list[tuple[str, Sequence[Door | Opening | Wall | AngleZone | Anchor | Frame]]] = [
             ("door", floor.doors),
             ("opening", floor.openings),
             ("wall", floor.walls),
             ("angle zone", floor.angle_zones),
             ("anchor", floor.anchors),
+            ("frame", floor.frames),
         ]
         for kind, items in groups:
             seen: set[str] = set()
@@ -867,6 +928,7 @@ def _check_hallways(floor: Floor, path: str | Path) -> None:
         ("door", floor.doors),
         ("opening", floor.openings),
         ("angle zone", floor.angle_zones),
+        ("frame", floor.frames),
     ):
         for item in items:
             element = f"{where} / {kind} {item.id}"
@@ -954,6 +1016,29 @@ def _check_along(view: Floor, path: str | Path) -> None:
                     f"overlaps {previous.id} on the {side} side of {name}",
                 )
             previous = feature
+    for frame in view.frames_along():
+        element = f"{where} / frame {frame.id}"
+        lo, hi = frame.span
+        if lo < lo_mm or hi > hi_mm:
+            raise FloorPlanError(
+                path,
+                element,
+                f"spans {lo:.0f}..{hi:.0f} mm, outside {name} ({lo_mm:.0f}..{hi_mm:.0f} mm)",
+            )
+        if frame.clear_width_mm >= view.hallway.width_mm:
+            raise FloorPlanError(
+                path,
+                element,
+                f"clear_width_mm: {frame.clear_width_mm:.0f} is not narrower than {name} "
+                f"({view.hallway.width_mm:.0f} mm)",
+            )
+        across = next((f for f in view.features() if f.span[1] > lo and f.span[0] < hi), None)
+        if across is not None:
+            raise FloorPlanError(
+                path,
+                element,
+                f"at_mm: stands across {across.id}'s doorway or mouth ({lo:.0f}..{hi:.0f} mm)",
+            )
     for zone in view.angle_zones:
         if view.hallway_of(zone) is not view.hallway:
             continue
@@ -974,6 +1059,14 @@ def _check_angle_zone_clear(floor: Floor, zone: AngleZone, path: str | Path) -> 
         for side in ("left", "right")
     ]
     left, right = in_the_way
+    frame = next((f for f in floor.frames_along() if f.span[1] >= lo and f.span[0] <= hi), None)
+    if frame is not None:
+        raise FloorPlanError(
+            path,
+            f"floor {floor.level} / angle zone {zone.id}",
+            f"from_mm, to_mm: lies over frame {frame.id}, whose jambs stand in from both walls "
+            f"(keep {ANGLE_ZONE_CLEARANCE_MM:.0f} mm of plain wall beyond each end)",
+        )
     if left is not None and right is not None:
         raise FloorPlanError(
             path,

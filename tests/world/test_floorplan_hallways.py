@@ -214,3 +214,55 @@ def test_a_rooms_doors_are_of_one_kind(second: dict[str, Any], problem: str) -> 
         {"id": "B1-side", "room": "B1", "side": "right", "at_mm": 18000, "hallway": "A", **second},
     ]
     assert problem in _error([A, L_NORTH], doors)
+
+
+def _with_frames(frames: list[dict[str, Any]], doors: list[dict[str, Any]] | None = None) -> Any:
+    tea = {"room": "Tea", "kind": "tea_room", "side": "left", "at_mm": 3000}
+    return {
+        "floors": [
+            {
+                "level": 1,
+                "hallways": [A],
+                "doors": [tea, *(doors or [])],
+                "frames": frames,
+                "angle_zones": [{"id": "Z", "from_mm": 15000, "to_mm": 16000}],
+            }
+        ]
+    }
+
+
+def test_a_fire_door_across_a_hallway_narrows_it_at_its_frame() -> None:
+    fire_door = {"id": "F", "kind": "fire_door", "at_mm": 9000, "clear_width_mm": 1300}
+    floor = parse_floorplan(_with_frames([fire_door])).floors[0]
+    assert [f.id for f in floor.frames_along()] == ["F"]
+    # Across the frame the jambs stand 650 mm from the axis; beside the folded leaves the
+    # walls are 60 mm nearer; beyond them, the hallway's own walls.
+    assert _hit(floor, 9000, 0, 90) == (pytest.approx(650), "frame F jamb")
+    assert _hit(floor, 9300, 0, -90) == (pytest.approx(790), "fire door F leaf")
+    assert _hit(floor, 9800, 0, 90) == (pytest.approx(850), "hallway left wall")
+
+
+@pytest.mark.parametrize(
+    ("frame", "doors", "problem"),
+    [
+        (
+            {"clear_width_mm": 1800},
+            [],
+            "floor 1 / frame F: clear_width_mm: 1800 is not narrower than the hallway",
+        ),
+        (
+            {},
+            [{"room": "101", "side": "right", "at_mm": 9200}],
+            "floor 1 / frame F: at_mm: stands across 101's doorway",
+        ),
+        ({"at_mm": 15500}, [], "floor 1 / angle zone Z: from_mm, to_mm: lies over frame F"),
+        ({"at_mm": 19990}, [], "floor 1 / frame F: spans 19915..20065 mm, outside the hallway"),
+    ],
+)
+def test_a_frame_a_surveyor_got_wrong_is_refused(
+    frame: dict[str, Any], doors: list[dict[str, Any]], problem: str
+) -> None:
+    plain = {"id": "F", "at_mm": 9000, "clear_width_mm": 1300, **frame}
+    with pytest.raises(FloorPlanError) as caught:
+        parse_floorplan(_with_frames([plain], doors))
+    assert problem in str(caught.value)

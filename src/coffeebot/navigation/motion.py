@@ -68,6 +68,9 @@ MAKING_ROOM = "no room to turn into the lane: making room towards the hallway's 
 
 NO_ROOM_TO_MAKE = "no room to turn into the lane, and no way towards the hallway's middle"
 
+FRAME_LEAD_MM = 1500.0
+"""How far ahead of a door frame across the hallway the lane moves in to pass its opening."""
+
 MAKE_ROOM_MM = 3000.0
 """How far a robot whose turn into the lane has no room drives towards the hallway's centre
 line to find room, before it calls itself blocked: the centre is at most half the hallway
@@ -412,7 +415,9 @@ class MotionController:
         s, d = floor.to_hallway(pose.x_mm, pose.y_mm)
         direction = self._direction
         remaining = (ins.target_s_mm - s) * direction
-        lane = self._lane(ins, floor, s, d, direction, remaining, now)
+        lane = self._through_frames(
+            floor, s, direction, self._lane(ins, floor, s, d, direction, remaining, now)
+        )
         travel = floor.hallway.heading_deg + (0.0 if direction > 0 else 180.0)
         if ins.stop and remaining <= self.profile.stop_band_mm:
             detail = (
@@ -528,6 +533,25 @@ class MotionController:
         )
         self.yielding = self.passing is not None and not keeps_right
         return ins.lane_mm if self.passing is None else passing
+
+    def _through_frames(self, floor: Floor, s: float, direction: float, lane: float) -> float:
+        """``lane``, or nearer the axis where a door frame across the hallway lies within
+        ``FRAME_LEAD_MM`` ahead or under the body: as far out as its opening leaves
+        ``side_clearance_mm`` beside the body (a keep-right lane passes a 1400 mm frame
+        with its side 50 mm from a jamb)."""
+        reach = self.footprint.length_mm / 2
+        for frame in floor.frames_along():
+            lo, hi = frame.at_mm - frame.depth_mm / 2, frame.at_mm + frame.depth_mm / 2
+            near, far = (lo, hi) if direction > 0 else (hi, lo)
+            if (near - s) * direction <= FRAME_LEAD_MM and (far - s) * direction >= -reach:
+                limit = max(
+                    0.0,
+                    frame.clear_width_mm / 2
+                    - self.footprint.width_mm / 2
+                    - self.cfg.side_clearance_mm,
+                )
+                lane = max(-limit, min(limit, lane))
+        return lane
 
     def _go_round(
         self,
