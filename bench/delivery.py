@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import json
+import math
 import random
 import sys
 import time
@@ -45,8 +46,8 @@ ROOT = Path(__file__).resolve().parents[1]
 PLAN_PATH = ROOT / "floorplans" / "cs-building.toml"
 LANE_OBSTACLES: tuple[ObstacleKind, ...] = ("cardboard_box", "mail_cart")
 WALL_GAP_MM = {"cardboard_box": 250.0, "mail_cart": 270.0}
-"""How far an obstacle's centre stands from the hallway's wall line: against the wall, in the
-lane of a robot keeping to that side."""
+"""How far an obstacle's centre stands from the hallway's wall line: against the wall on the
+robot's side, in its keep-right lane."""
 START_BEFORE_DOOR_MM = 500.0
 """The robot starts this far short of the tea room's door (less ``s``)."""
 
@@ -121,16 +122,19 @@ def random_scenario(building: Building, rng: random.Random, index: int) -> Scena
     walk = min(8000.0, length / 4)
     entry = building.entry_s(room)
     towards = 1.0 if entry >= loc.door.at_mm else -1.0
+    lane = building.planner.lane_mm(floor, -towards)  # the robot's, keeping right to the door
     beyond = walk if towards > 0 else length - walk
     near = towards * max(towards * (loc.door.at_mm + towards * 3000), towards * beyond)
     far = entry - towards * 5000
     if rng.random() < 0.5 and (far - near) * towards > 0:
         kind = rng.choice(LANE_OBSTACLES)
         s = rng.uniform(min(near, far), max(near, far))
-        x, y = floor.from_hallway(s, half - WALL_GAP_MM[kind])
+        x, y = floor.from_hallway(s, math.copysign(half - WALL_GAP_MM[kind], lane))
         obstacles.append(ObstacleSpec(id=kind, kind=kind, floor=floor.level, x_mm=x, y_mm=y))
     if rng.random() < 0.25:
-        a, b = floor.from_hallway(walk, 400 - half), floor.from_hallway(length - walk, 400 - half)
+        # On the other side of the hallway from the robot's lane.
+        side = -math.copysign(half - 400, lane)
+        a, b = floor.from_hallway(walk, side), floor.from_hallway(length - walk, side)
         obstacles.append(
             ObstacleSpec(
                 id="person",
