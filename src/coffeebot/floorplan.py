@@ -589,8 +589,14 @@ class Floor(_Model):
         raise KeyError(f"floor {self.level} has no door {door_id!r}")
 
     @property
+    def elevators(self) -> list[Door]:
+        """Every elevator door of the floor, one a car."""
+        return [d for d in self.doors if d.kind == "elevator"]
+
+    @property
     def elevator(self) -> Door | None:
-        return next((d for d in self.doors if d.kind == "elevator"), None)
+        """The first elevator door listed: the car of a building with one, a fleet's car."""
+        return next(iter(self.elevators), None)
 
     def walls_near(self, x_mm: float, y_mm: float, radius_mm: float) -> list[WallSegment]:
         """Wall segments passing within ``radius_mm`` of a point."""
@@ -742,6 +748,44 @@ class FloorPlan(_Model):
             raise KeyError(f"no room {room!r} in floor plan {self.name!r}")
         return found
 
+    @cached_property
+    def cars(self) -> dict[str, list[RoomLocation]]:
+        """The elevator cars, each named by its first door's id, with its door on each floor
+        it serves: elevator doors at one place in the building frame (the leaf's centre
+        within ``ELEVATOR_TOLERANCE_MM``), opening the same way, are one car."""
+        cars: dict[str, list[RoomLocation]] = {}
+        for floor in self.floors:
+            for door in floor.elevators:
+                front = _elevator_front(floor, door)
+                car = next(
+                    (
+                        name
+                        for name, stops in cars.items()
+                        if _same_car(front, _elevator_front(*stops[0]))
+                        and all(stop.floor.level != floor.level for stop in stops)
+                    ),
+                    None,
+                )
+                if car is None:  # a new car, named by its door (and floor, if that is taken)
+                    car = door.id if door.id not in cars else f"{door.id} (floor {floor.level})"
+                cars.setdefault(car, []).append(RoomLocation(floor, door))
+        return cars
+
+    def car_door(self, car: str, level: int) -> Door:
+        """Car ``car``'s door on floor ``level``."""
+        for stop in self.cars[car]:
+            if stop.floor.level == level:
+                return stop.door
+        raise KeyError(f"elevator {car} does not stop on floor {level}")
+
+    def cars_between(self, a: int, b: int) -> list[str]:
+        """The cars that stop on both floors."""
+        return [
+            car
+            for car, stops in self.cars.items()
+            if {a, b} <= {stop.floor.level for stop in stops}
+        ]
+
     @property
     def tea_rooms(self) -> list[RoomLocation]:
         """Every pickup point (a door of kind ``tea_room``), in floor then plan order."""
@@ -877,10 +921,7 @@ def _check_consistency(plan: FloorPlan, path: str | Path) -> None:
             _check_along(floor.view(hallway.id), path)
         _check_anchors_near(floor, path)
         _check_cameras(floor, path)
-        elevators = [d for d in floor.doors if d.kind == "elevator"]
-        if len(elevators) > 1:
-            raise FloorPlanError(path, f"{where} / door {elevators[1].id}", "second elevator door")
-        if len(plan.floors) > 1 and not elevators:
+        if len(plan.floors) > 1 and not floor.elevators:
             raise FloorPlanError(path, where, "no elevator door in a building of several floors")
     _check_elevator_aligned(plan, path)
     _check_camera_ids_unique(plan, path)
@@ -1138,33 +1179,48 @@ def _elevator_front(floor: Floor, door: Door) -> tuple[np.ndarray, np.ndarray]:
     return centre, inward / np.linalg.norm(inward)
 
 
+def _same_car(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray]) -> bool:
+    """Whether two elevator doors (:func:`_elevator_front`) open one car."""
+    (centre_a, inward_a), (centre_b, inward_b) = a, b
+    facing = float(inward_a @ inward_b) >= math.cos(math.radians(45))
+    return facing and float(np.linalg.norm(centre_a - centre_b)) <= ELEVATOR_TOLERANCE_MM
+
+
 def _check_elevator_aligned(plan: FloorPlan, path: str | Path) -> None:
-    """One car serves every floor: its door must stand at the same place, facing the same
-    way, on each (the robot drives into the car on one floor and out of it on another)."""
-    stops = [(f, f.elevator) for f in plan.floors if f.elevator is not None]
-    if len(stops) < 2:
+    """In a building of several floors every car serves two floors at least: an elevator
+    door that lines up with none on another floor (the same place, facing the same way) is a
+    survey mistake, named against the nearest elevator door of another floor."""
+    if len(plan.floors) < 2:
         return
-    first_floor, first = stops[0]
-    first_centre, first_inward = _elevator_front(first_floor, first)
-    for floor, door in stops[1:]:
+    for stops in reversed(plan.cars.values()):  # the later floor's door is the one named
+        if len(stops) > 1:
+            continue
+        floor, door = stops[0]
         centre, inward = _elevator_front(floor, door)
+        others = [
+            (float(np.linalg.norm(_elevator_front(f, d)[0] - centre)), f, d)
+            for f in plan.floors
+            if f.level != floor.level
+            for d in f.elevators
+        ]
+        _, other_floor, other = min(others, key=lambda o: o[0])
+        other_centre, other_inward = _elevator_front(other_floor, other)
         where = f"floor {floor.level} / door {door.id}"
-        if float(inward @ first_inward) < math.cos(math.radians(45)):
+        if float(inward @ other_inward) < math.cos(math.radians(45)):
             raise FloorPlanError(
                 path,
                 where,
                 f"side: the elevator opens on the {door.side} side, facing another way than "
-                f"{first.id} on floor {first_floor.level} ({first.side} side): not one car",
+                f"{other.id} on floor {other_floor.level} ({other.side} side): not one car",
             )
-        offset = float(np.linalg.norm(centre - first_centre))
-        if offset > ELEVATOR_TOLERANCE_MM:
-            raise FloorPlanError(
-                path,
-                where,
-                f"at_mm: the elevator door is {offset:.0f} mm from {first.id} on floor "
-                f"{first_floor.level} in the building frame (at most "
-                f"{ELEVATOR_TOLERANCE_MM:.0f}): not one car",
-            )
+        offset = float(np.linalg.norm(centre - other_centre))
+        raise FloorPlanError(
+            path,
+            where,
+            f"at_mm: the elevator door is {offset:.0f} mm from {other.id} on floor "
+            f"{other_floor.level} in the building frame (at most "
+            f"{ELEVATOR_TOLERANCE_MM:.0f}): not one car",
+        )
 
 
 # --- warnings: what a valid plan leaves the robot to do poorly ---------------------------------

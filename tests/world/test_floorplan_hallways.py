@@ -266,3 +266,40 @@ def test_a_frame_a_surveyor_got_wrong_is_refused(
     with pytest.raises(FloorPlanError) as caught:
         parse_floorplan(_with_frames([plain], doors))
     assert problem in str(caught.value)
+
+
+def test_elevator_doors_at_one_place_on_two_floors_are_one_car() -> None:
+    """Two cars: one at A's 5000 mm, one at its 15000 mm, on both floors (the second floor's
+    hallway surveyed the other way, so the doors are on its other side)."""
+    back = {"id": "A", "start": [20000, 0], "end": [0, 0], "width_mm": 1700}
+
+    def car(ident: str, side: str, at: float) -> dict[str, Any]:
+        return {"id": ident, "room": f"lift {ident}", "kind": "elevator", "side": side, "at_mm": at}
+
+    tea = {"room": "Tea", "kind": "tea_room", "side": "left", "at_mm": 3000}
+    raw = {
+        "floors": [
+            {
+                "level": 1,
+                "hallways": [A],
+                "doors": [tea, car("L1", "left", 5000), car("L2", "left", 15000)],
+            },
+            {
+                "level": 2,
+                "hallways": [back],
+                "doors": [car("M2", "right", 5000), car("M1", "right", 15000)],
+            },
+        ]
+    }
+    plan = parse_floorplan(raw)
+    assert {name: [s.door.id for s in stops] for name, stops in plan.cars.items()} == {
+        "L1": ["L1", "M1"],
+        "L2": ["L2", "M2"],
+    }
+    assert plan.cars_between(1, 2) == ["L1", "L2"] and plan.car_door("L2", 2).id == "M2"
+    raw["floors"][1]["doors"][1]["at_mm"] = 14500  # a car stopping on floor 1 only
+    with pytest.raises(FloorPlanError) as caught:
+        parse_floorplan(raw)
+    assert "floor 2 / door M1: at_mm: the elevator door is 500 mm from L1 on floor 1" in str(
+        caught.value
+    )
