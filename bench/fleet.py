@@ -240,8 +240,7 @@ async def drive(
 ) -> dict[str, Any]:
     clock = fleet.dispatcher.board.clock
     orders = fleet.dispatcher.module
-    lift = fleet.world.world.elevator
-    assert lift is not None
+    (lift,) = fleet.world.world.elevators  # a fleet shares one car
     due = arrivals(case)
     placed: dict[str, float] = {}
     entered: dict[str, list[float]] = {name: [] for name in probes}

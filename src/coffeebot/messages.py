@@ -420,15 +420,19 @@ class PlannedRoute(Message):
 
 
 class ElevatorRequest(Message):
-    """Navigation asks the elevator: call the car to ``floor``, send it there, or release it."""
+    """Navigation asks the elevator: call the car to ``floor``, send it there, or release it.
+    ``car``: which (:attr:`~coffeebot.floorplan.FloorPlan.cars`; None: the first)."""
 
     action: Literal["call", "send", "release"]
     floor: int
+    car: str | None = None
 
 
 class ElevatorState(Message):
-    """Where the car is and whether its doors are open, as the elevator interface knows it."""
+    """Where the car is and whether its doors are open, as the elevator interface knows it:
+    the car last asked for (``car``; None: the first), the one the robot is using."""
 
+    car: str | None = None
     car_floor: int | None
     doors: Literal["open", "closed", "moving"]
     moving: bool = False

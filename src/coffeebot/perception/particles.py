@@ -315,13 +315,14 @@ class ParticlePoseFusion:
         return True
 
     def _at_elevator(self) -> bool:
-        """Near the elevator door, where the plan does not know what the sensors see."""
-        door = self.floor.elevator
-        if door is None or self.cfg.elevator_blind_mm <= 0:
+        """Near an elevator door, where the plan does not know what the sensors see."""
+        if self.cfg.elevator_blind_mm <= 0:
             return False
-        x, y = self.floor.behind_door(door, 0.0)
         px, py, _ = self.pose()
-        return math.hypot(px - x, py - y) < self.cfg.elevator_blind_mm
+        return any(
+            math.dist(self.floor.behind_door(door, 0.0), (px, py)) < self.cfg.elevator_blind_mm
+            for door in self.floor.elevators
+        )
 
     def update_position(self, x_mm: float, y_mm: float, sigma_mm: float) -> bool:
         if not (math.isfinite(x_mm) and math.isfinite(y_mm) and sigma_mm > 0):

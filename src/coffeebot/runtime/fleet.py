@@ -200,7 +200,7 @@ async def build_fleet_sim(
         floor=base.floor.level,
         pose=poses[0],
         seed=seed,
-        elevator=SimElevator(plan, car_floor=base.floor.level),
+        elevators=SimElevator.bank(plan, base.floor.level),
         robot_name=robot_ids(1)[0],
     )
     shared = SimWorld(world, clock)

@@ -64,7 +64,7 @@ async def build_sim(
         pose=setup.pose,
         obstacles=setup.obstacles,
         seed=setup.seed,
-        elevator=SimElevator(plan, car_floor=setup.floor),
+        elevators=SimElevator.bank(plan, setup.floor),
     )
     start = PoseEstimate(
         x_mm=setup.pose.x_mm,

@@ -225,12 +225,12 @@ class ElevatorSilent(_Fault):
         return "elevator does not answer"
 
     def begin(self, sim: Simulation) -> None:
-        if sim.world.elevator is not None:
-            sim.world.elevator.answering = False
+        for elevator in sim.world.elevators:
+            elevator.answering = False
 
     def end(self, sim: Simulation) -> None:
-        if sim.world.elevator is not None:
-            sim.world.elevator.answering = True
+        for elevator in sim.world.elevators:
+            elevator.answering = True
 
 
 def _store(sim: Simulation) -> SimStore:

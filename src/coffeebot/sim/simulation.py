@@ -35,6 +35,7 @@ from coffeebot.sim.serial_line import MemoryLine
 from coffeebot.sim.stepper import SimWorld
 from coffeebot.sim.store import SimStore
 from coffeebot.sim.world import ObstacleSpec, Pose, World
+from coffeebot.sim.world.elevator import SimElevator
 from coffeebot.sim.world.tof import Returns
 from coffeebot.sim.world.world import WorldRobot
 
@@ -227,18 +228,28 @@ class Simulation:
 
 
 class SimElevatorLink:
-    """The world's elevator as the elevator module sees it, every call under the lock."""
+    """The world's cars as the elevator module sees them, every call under the lock: a
+    request goes to the car it names (None: the first), the state is that of the car last
+    asked for."""
 
     def __init__(self, sim: Simulation) -> None:
         self.sim = sim
+        self._car: str | None = None
+
+    def _find(self, car: str | None) -> SimElevator | None:
+        cars = self.sim.world.elevators
+        return next((e for e in cars if car in (None, e.car)), None)
 
     def request(self, request: ElevatorRequest) -> None:
         with self.sim.lock:
-            if self.sim.world.elevator is not None:
-                self.sim.world.elevator.request(request)
+            self._car = request.car
+            elevator = self._find(request.car)
+            if elevator is not None:
+                elevator.request(request)
 
     def state(self) -> ElevatorState:
         with self.sim.lock:
-            if self.sim.world.elevator is None:
-                return ElevatorState(car_floor=None, doors="closed", source="none")
-            return self.sim.world.elevator.state()
+            elevator = self._find(self._car)
+            if elevator is None:
+                return ElevatorState(car=self._car, car_floor=None, doors="closed", source="none")
+            return elevator.state()

@@ -26,6 +26,7 @@ class SimElevator:
         self,
         plan: FloorPlan,
         *,
+        car: str | None = None,
         car_floor: int | None = None,
         car_width_mm: float = 1400.0,
         car_depth_mm: float = 1500.0,
@@ -34,11 +35,12 @@ class SimElevator:
         answering: bool = True,
     ) -> None:
         self.plan = plan
-        # Each floor as seen along the hallway its car's door opens on.
+        self.car = car if car is not None else next(iter(plan.cars), "")
+        """Which of the plan's cars this is (None: the first)."""
+        # Each floor it serves as seen along the hallway its door opens on.
         self.doors: dict[int, tuple[Floor, Door]] = {
-            f.level: (f.view_of(f.elevator), f.elevator)
-            for f in plan.floors
-            if f.elevator is not None
+            stop.floor.level: (stop.floor.view_of(stop.door), stop.door)
+            for stop in plan.cars.get(self.car, [])
         }
         self.car_floor = car_floor if car_floor is not None else min(self.doors)
         self.car_width_mm = car_width_mm
@@ -52,6 +54,16 @@ class SimElevator:
         self._timer = 0.0
         self._cache: dict[tuple[int, bool], Surfaces] = {}
         self.requests: list[ElevatorRequest] = []
+
+    @classmethod
+    def bank(cls, plan: FloorPlan, floor: int) -> list[SimElevator]:
+        """Every car of ``plan``, each waiting at ``floor`` if it stops there (else at the
+        lowest floor it serves)."""
+        return [
+            cls(plan, car=car, car_floor=floor if floor in levels else min(levels))
+            for car, stops in plan.cars.items()
+            for levels in [{stop.floor.level for stop in stops}]
+        ]
 
     # --- interface (what the elevator module calls) ----------------------------------------
 
@@ -75,6 +87,7 @@ class SimElevator:
         elif self.phase in ("opening", "closing"):
             doors = "moving"
         return ElevatorState(
+            car=self.car,
             car_floor=None if self.phase == "travelling" else self.car_floor,
             doors=doors,
             moving=self.phase == "travelling",

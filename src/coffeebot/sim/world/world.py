@@ -89,13 +89,14 @@ class World:
         optics: ConeOptics | None = None,
         noise: RangingNoise | None = None,
         uwb: UwbModel | None = None,
-        elevator: SimElevator | None = None,
+        elevators: Sequence[SimElevator] = (),
         robot_name: str = "robot",
     ) -> None:
         """``robot`` stands at ``pose`` on ``floor``, named ``robot_name`` (what another
         robot's collision with it is called)."""
         self.plan = plan
-        self.elevator = elevator
+        self.elevators = tuple(elevators)
+        """The building's cars, simulated (none: the elevator doors stay shut)."""
         self.seed = seed
         self.obstacles = tuple(obstacles)
         for obstacle in self.obstacles:
@@ -191,13 +192,13 @@ class World:
     def _scene(self, level: int, t_s: float | None) -> Surfaces:
         """Floor ``level`` without the robots: the plan, the elevator, the obstacles. Kept
         while nothing in it can have changed (every robot asks for it every physics step)."""
-        lift = None if self.elevator is None else self.elevator.surfaces(level)
-        # The elevator keeps each of its outlines: the same object while its doors stay.
-        key = (self.t_s, id(lift), tuple(self.obstacle_start_s))
+        lifts = [elevator.surfaces(level) for elevator in self.elevators]
+        # A car keeps each of its outlines: the same object while its doors stay.
+        key = (self.t_s, tuple(id(lift) for lift in lifts), tuple(self.obstacle_start_s))
         if t_s is None and self._scenes.get(level, (None,))[0] == key:
             return self._scenes[level][1]
         surfaces = self._static_surfaces(level)
-        if lift is not None:
+        for lift in lifts:
             surfaces = surfaces + lift
         for i, obstacle in enumerate(self.obstacles):
             if obstacle.timed and obstacle.floor == level:
@@ -224,9 +225,9 @@ class World:
     def _static_surfaces(self, level: int) -> Surfaces:
         if level not in self._static:
             floor = self.plan.floor(level)
-            # With a simulated elevator its car doors stand in for the plan's door leaf.
-            doors = None if self.elevator is None else self.elevator.door_element(level)
-            keep = [i for i, s in enumerate(floor.segments) if s.element != doors]
+            # A simulated car's doors stand in for the plan's door leaf.
+            doors = {elevator.door_element(level) for elevator in self.elevators}
+            keep = [i for i, s in enumerate(floor.segments) if s.element not in doors]
             elements = tuple(floor.segments[i].element for i in keep)
             surfaces = Surfaces(
                 floor.segment_array[keep],
@@ -249,9 +250,9 @@ class World:
         recorded."""
         if dt_s <= 0:
             return
-        if self.elevator is not None:
-            riding = [r for r in self.robots if self.elevator.inside(r.floor_level, *r.pose[:2])]
-            arrived = self.elevator.step(dt_s)
+        for elevator in self.elevators:
+            riding = [r for r in self.robots if elevator.inside(r.floor_level, *r.pose[:2])]
+            arrived = elevator.step(dt_s)
             if arrived is not None:
                 for robot in riding:
                     if arrived != robot.floor_level:
