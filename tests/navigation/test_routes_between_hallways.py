@@ -50,7 +50,7 @@ def test_round_a_bend_the_robot_turns_where_the_axes_meet() -> None:
     steps = PLANNER.route(1, 4500, PLANNER.door_place("112"), hallway="main").steps
     moves = instructions(steps)
     to_corner = next(i for i, m in enumerate(moves) if m.detail == "to hallway east")
-    corner, turn, along = moves[to_corner], moves[to_corner + 1], moves[to_corner + 2:]
+    corner, turn, along = moves[to_corner], moves[to_corner + 1], moves[to_corner + 2 :]
     # On the main hallway's axis, the axle's offset short of the east wing's axis, so the
     # quarter turn about the axle leaves the centre on it.
     assert (corner.hallway, corner.target_s_mm, corner.lane_mm) == ("main", 32000 - PIVOT, 0.0)
@@ -122,3 +122,19 @@ def test_to_a_room_with_two_doors_the_robot_goes_to_the_nearer() -> None:
         assert goal.door.id == door
         last = instructions(routes[goal].steps)[-1]
         assert last.target_door == door
+
+
+def test_to_another_floor_the_robot_takes_the_nearer_car() -> None:
+    """From the café the car half way along the main hallway (E1); from the east wing the
+    one near its corner (E2)."""
+    assert list(LINDEN.cars) == ["E1", "E2"]
+    for x, y, room, car in ((4500, -445, "205", "E1"), (32240, 10500, "202", "E2")):
+        where = PLANNER.where(1, x, y)
+        place = PLANNER.door_place(room)
+        routes = {
+            car: PLANNER.route(1, where.s_mm, place, where.leave, hallway=where.hallway, car=car)
+            for car in PLANNER.cars_to(1, place)
+        }
+        assert nearest(routes, LINDEN, 1, (x, y)) == car
+        ride = next(s for s in routes[car].steps if isinstance(s, ElevatorRide))
+        assert ride.car == car

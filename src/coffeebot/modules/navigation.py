@@ -89,7 +89,13 @@ class DeliveryAborted(DeliveryError):
 
 
 def parking_spot(config: RobotConfig, plan: FloorPlan) -> ParkingSpot:
-    """A fleet robot's own place to wait in the base room (``[fleet] parking_spot``)."""
+    """A fleet robot's own place to wait in the base room (``[fleet] parking_spot``); and
+    a fleet's building has one car (its robots take turns in it: one lease)."""
+    if len(plan.cars) > 1:
+        raise ConfigError(
+            f"a fleet shares one elevator car, and {plan.name!r} has {len(plan.cars)} "
+            f"({', '.join(plan.cars)}): run its robots on their own"
+        )
     loc = plan.tea_room
     spots = loc.floor.parking
     index = config.fleet.parking_spot
@@ -422,20 +428,22 @@ class NavigationModule(Module):
             )
         await self._elevator_step(
             ctx,
-            ElevatorRequest(action="call", floor=here),
-            lambda s: s.car_floor == here and s.doors == "open",
+            ElevatorRequest(action="call", floor=here, car=ride.car),
+            lambda s: s.car in (None, ride.car) and s.car_floor == here and s.doors == "open",
             cfg.call_timeout_s,
             f"car to floor {here}",
         )
         await self._drive(ctx, ride.enter)
         # Sent at once: the doors close and the car travels while the robot turns round.
-        ctx.board.publish(ELEVATOR_REQUEST, ElevatorRequest(action="send", floor=there))
+        ctx.board.publish(
+            ELEVATOR_REQUEST, ElevatorRequest(action="send", floor=there, car=ride.car)
+        )
         await self._move(ctx, ride.turn_round)
         self._hold_still(ctx, f"in the car to floor {there}")
         await self._elevator_step(
             ctx,
-            ElevatorRequest(action="send", floor=there),
-            lambda s: s.car_floor == there and s.doors == "open",
+            ElevatorRequest(action="send", floor=there, car=ride.car),
+            lambda s: s.car in (None, ride.car) and s.car_floor == there and s.doors == "open",
             cfg.ride_timeout_s,
             f"ride to floor {there}",
         )
@@ -453,7 +461,9 @@ class NavigationModule(Module):
             )
         self._progress(ctx, f"on floor {there}")
         await self._drive(ctx, ride.exit)
-        ctx.board.publish(ELEVATOR_REQUEST, ElevatorRequest(action="release", floor=there))
+        ctx.board.publish(
+            ELEVATOR_REQUEST, ElevatorRequest(action="release", floor=there, car=ride.car)
+        )
         # A fleet's route gives the elevator back now: the robot is out and the car released.
 
     # --- deliveries ------------------------------------------------------------------------
@@ -461,26 +471,30 @@ class NavigationModule(Module):
     def _route_to(self, ctx: ModuleContext, room: str | None) -> Route:
         """To ``room``'s nearest door, or (None) home: a fleet's robot to the loading spot,
         where :meth:`_go_home` decides whether it parks; a single robot to the nearest
-        pickup point (nearest: fewest elevator rides, then the shortest way)."""
+        pickup point; by the nearest car (nearest: fewest elevator rides, then the shortest
+        way)."""
         pose = self._pose(ctx)
         if pose is None:
             raise DeliveryAborted("the robot does not know where it is", DeliveryProblem.LOST)
         hallway, s, leave = self.planner.where(pose.floor, pose.x_mm, pose.y_mm)
-
-        def to(goal: Place) -> Route:
-            return self.planner.route(
-                pose.floor, s, goal, leave, park=room is not None, hallway=hallway
-            )
-
         if room is not None:
             goals = self.planner.door_places(room)  # a room may have two doors
         elif self.fleet:
             goals = [self.planner.base]
         else:
             goals = self.planner.pickup_points  # a single robot's cup at the nearest
-        routes = {place: to(place) for place in goals}
-        goal = nearest(routes, self.planner.plan, pose.floor, (pose.x_mm, pose.y_mm))
-        route = routes[goal]
+        # Each goal by each car that goes there (a building may have several).
+        routes = {
+            (place, car): self.planner.route(
+                pose.floor, s, place, leave, park=room is not None, hallway=hallway, car=car
+            )
+            for place in goals
+            for car in (
+                self.planner.cars_to(pose.floor, place) if place.floor != pose.floor else [None]
+            )
+        }
+        way = nearest(routes, self.planner.plan, pose.floor, (pose.x_mm, pose.y_mm))
+        goal, route = way[0], routes[way]
         if room is None:
             self._home = goal
         life = self._life

@@ -11,10 +11,11 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Mapping, Sequence
+from typing import TypeVar
 
 from coffeebot.floorplan import FloorPlan
 from coffeebot.messages import MoveInstruction, RouteLeg
-from coffeebot.navigation.route import ElevatorRide, Lease, Move, Place, Route
+from coffeebot.navigation.route import ElevatorRide, Lease, Move, Route
 
 
 def polyline_length_mm(points: Sequence[tuple[float, float]]) -> float:
@@ -57,13 +58,16 @@ def route_legs(
     return [RouteLeg(floor=level, points=points) for level, points in legs]
 
 
+Way = TypeVar("Way")
+
+
 def nearest(
-    routes: Mapping[Place, Route], plan: FloorPlan, floor: int, start: tuple[float, float]
-) -> Place:
-    """The goal of the route with the fewest elevator rides and then the shortest lines (a
+    routes: Mapping[Way, Route], plan: FloorPlan, floor: int, start: tuple[float, float]
+) -> Way:
+    """The key of the route with the fewest elevator rides and then the shortest lines (a
     ride, calling the car included, takes longer than any hallway of a building)."""
 
-    def rides_and_length(key: Place) -> tuple[int, float]:
+    def rides_and_length(key: Way) -> tuple[int, float]:
         legs = route_legs(routes[key], plan, floor, start)
         return len(legs) - 1, sum(polyline_length_mm(leg.points) for leg in legs)
 

@@ -80,6 +80,8 @@ class ElevatorRide:
 
     from_floor: int
     to_floor: int
+    car: str
+    """Which of the plan's cars (:attr:`~coffeebot.floorplan.FloorPlan.cars`)."""
     face_doors: Move
     enter: list[Move | Lease]
     turn_round: Move
@@ -260,15 +262,22 @@ class RoutePlanner:
         leave: Door | None = None,
         park: bool = True,
         hallway: str | None = None,
+        car: str | None = None,
     ) -> Route:
         """From ``s_start`` along ``hallway`` (None: the first) of ``floor_level`` (or parked
-        behind ``leave``) to ``goal``; a fleet's robot coming home ends on the loading spot,
-        holding it, unless it goes on to ``park`` (:meth:`back_to_spot`, or :meth:`face_out`
-        for its next cup)."""
+        behind ``leave``) to ``goal``, riding ``car`` to another floor (None: the first that
+        stops on both; :meth:`cars_to` lists them); a fleet's robot coming home ends on the
+        loading spot, holding it, unless it goes on to ``park`` (:meth:`back_to_spot`, or
+        :meth:`face_out` for its next cup)."""
         steps: list[Step] = []
         floor = self.plan.floor(floor_level).view(hallway)
         s = s_start
         rides = goal.floor != floor_level
+        if rides:
+            car = car if car is not None else self.cars_to(floor_level, goal)[0]
+            lift: Door | None = self.plan.car_door(car, floor_level)
+        else:
+            lift = None
         # Leaving a room near the elevator, a fleet's robot waits for it in the room.
         asked = rides and leave is not None and self._near_elevator(floor, leave.at_mm)
         if asked:
@@ -290,13 +299,10 @@ class RoutePlanner:
         crossing_out = from_base and not to_car_near and self._crossing(floor)
         if leave is not None:
             s = leave.at_mm
-            direction = self._direction(floor, s, goal)
+            direction = self._direction(floor, s, goal, lift)
             lane = self.lane_mm(floor, direction)
             # Out and turned along the hallway, unless the car it rides in is straight across.
-            car = floor.elevator
-            across = (
-                rides and car is not None and abs(car.at_mm - s) <= self.motion.stop_tolerance_mm
-            )
+            across = lift is not None and abs(lift.at_mm - s) <= self.motion.stop_tolerance_mm
             out_to = lane if across else self.out_to_mm(leave, lane)
             if crossing_out:
                 steps.append(Lease("crossing", True))
@@ -316,19 +322,17 @@ class RoutePlanner:
             if crossing_out:
                 clear, s = self._out_of_crossing(floor, s, goal, lane, direction)
                 steps += clear
-        if rides:
-            assert floor.elevator is not None  # the floor plan loader guarantees it
-            between, floor, s = self._between_hallways(floor, s, floor.elevator)
+        if car is not None and lift is not None:
+            between, floor, s = self._between_hallways(floor, s, lift)
             steps += between
-            steps.extend(self._to_elevator(floor, s, goal, asked))
+            steps.extend(self._to_elevator(floor, s, goal, asked, lift))
             in_the_car = _front_of_car_given_back(steps)
             if to_car_near:
                 in_the_car.append(spot_given_back)
-            steps.append(self._ride(floor_level, goal.floor, goal, in_the_car))
-            floor = self._view_of(goal.floor, self.plan.floor(goal.floor).elevator)
-            assert floor.elevator is not None
-            s = floor.elevator.at_mm
-            steps += self._out_of_car(floor, goal)
+            steps.append(self._ride(floor_level, goal.floor, goal, car, in_the_car))
+            there = self.plan.car_door(car, goal.floor)
+            floor, s = self._view_of(goal.floor, there), there.at_mm
+            steps += self._out_of_car(floor, goal, there)
             if self.parking is not None:
                 clear, s = self._clear_of_elevator(floor, s, goal)
                 steps += clear
@@ -351,15 +355,15 @@ class RoutePlanner:
             return Whereabouts(floor.hallway.id, s, None)
         return Whereabouts(floor.hallway.id, s, floor.nearest_door(s, "left" if d > 0 else "right"))
 
-    def _direction(self, floor: Floor, s: float, goal: Place) -> float:
-        """Which way along ``floor``'s hallway the route leaves ``s`` in."""
-        if goal.floor != floor.level:
-            if floor.elevator is None:
-                return 1.0
-            target = self._aim_mm(floor, s, floor.elevator)
-        else:
-            target = self._aim_mm(floor, s, goal.door)
+    def _direction(self, floor: Floor, s: float, goal: Place, lift: Door | None) -> float:
+        """Which way along ``floor``'s hallway the route leaves ``s`` in (to ``lift``, the
+        car's door, for a goal on another floor)."""
+        target = self._aim_mm(floor, s, goal.door if lift is None else lift)
         return 1.0 if target >= s else -1.0
+
+    def cars_to(self, level: int, goal: Place) -> list[str]:
+        """The cars that take a robot from floor ``level`` to ``goal``'s floor."""
+        return self.plan.cars_between(level, goal.floor)
 
     # --- between hallways -------------------------------------------------------------------
 
@@ -547,11 +551,11 @@ class RoutePlanner:
         away = self._lane(floor, clear_at, lane, stop=False, detail="away from the elevator")
         return [away, *given_back], clear_at
 
-    def _to_elevator(self, floor: Floor, s: float, goal: Place, asked: bool) -> list[Step]:
-        """To the elevator's door; a fleet's robot holds short of it for its leases unless
-        it ``asked`` for them already."""
-        elevator = floor.elevator
-        assert elevator is not None  # the floor plan loader guarantees it
+    def _to_elevator(
+        self, floor: Floor, s: float, goal: Place, asked: bool, elevator: Door
+    ) -> list[Step]:
+        """To ``elevator``, the car's door; a fleet's robot holds short of it for its leases
+        unless it ``asked`` for them already."""
         leases = (
             [] if asked else [*self._elevator_leases(goal), *self._in_front_of_car(floor, True)]
         )
@@ -625,14 +629,19 @@ class RoutePlanner:
         return [self._lane(floor, pull_over_at, keep_right, stop=False, detail="along the hallway")]
 
     def _ride(
-        self, from_level: int, to_level: int, goal: Place, given_back: Sequence[Lease] = ()
+        self,
+        from_level: int,
+        to_level: int,
+        goal: Place,
+        car: str,
+        given_back: Sequence[Lease] = (),
     ) -> ElevatorRide:
-        """The ride to ``goal``'s floor; ``given_back``: the places it no longer needs once
-        in the car (it is in nobody's way there)."""
-        here = self._view_of(from_level, self.plan.floor(from_level).elevator)
-        there = self._view_of(to_level, self.plan.floor(to_level).elevator)
-        door_here, door_there = here.elevator, there.elevator
-        assert door_here is not None and door_there is not None
+        """The ride in ``car`` to ``goal``'s floor; ``given_back``: the places it no longer
+        needs once in the car (it is in nobody's way there)."""
+        door_here = self.plan.car_door(car, from_level)
+        door_there = self.plan.car_door(car, to_level)
+        here = self._view_of(from_level, door_here)
+        there = self._view_of(to_level, door_there)
         depth = self.nav.elevator.car_depth_mm
         facing = self.facing_deg(here, door_here)
         target_s = self._aim_mm(there, door_there.at_mm, goal.door)
@@ -656,6 +665,7 @@ class RoutePlanner:
         return ElevatorRide(
             from_floor=from_level,
             to_floor=to_level,
+            car=car,
             face_doors=self._turn(here, facing, "facing the elevator doors"),
             # Parked ``car_depth_mm`` past the door line, the body's sweep about the axle
             # stays in the car: what it holds for the way in is given back before it turns,
@@ -676,12 +686,10 @@ class RoutePlanner:
             exit=out,
         )
 
-    def _out_of_car(self, there: Floor, goal: Place) -> list[Step]:
-        """Out of the car (and the car released): a fleet's robot gives the elevator back,
-        so a robot on another floor has it at once; then the robot turns into its lane
-        unless its goal's door is straight across."""
-        door_there = there.elevator
-        assert door_there is not None
+    def _out_of_car(self, there: Floor, goal: Place, door_there: Door) -> list[Step]:
+        """Out of the car at ``door_there`` (and the car released): a fleet's robot gives
+        the elevator back, so a robot on another floor has it at once; then the robot turns
+        into its lane unless its goal's door is straight across."""
         steps: list[Step] = [Lease("elevator", False)] if self.parking is not None else []
         if not (goal.inside and self._across_from(there, goal.door, door_there.at_mm)):
             aim = self._aim_mm(there, door_there.at_mm, goal.door)
