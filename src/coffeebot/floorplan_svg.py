@@ -15,7 +15,7 @@ hallway carries its id in a ``data-hallway`` attribute.
 Floors drawn together share one frame: each is a panel of the same size, stacked downwards,
 a point of the building frame at the same place in every panel. Each panel shows the other
 floors' hallways dashed beneath its own (the outline of all of a floor's hallways taken
-together), and a line through every panel marks the elevator shaft, so a surveyor sees at
+together), and a line through every panel marks each elevator shaft, so a surveyor sees at
 once whether the floors were surveyed in one frame and whether the car's doors line up.
 """
 
@@ -193,10 +193,9 @@ def _corners(loop: list[tuple[float, float]]) -> list[tuple[float, float]]:
     return kept or loop
 
 
-def _car_centre(floor: Floor) -> tuple[float, float] | None:
-    """The middle of the elevator's door leaf on ``floor`` (None: no elevator there)."""
-    door = floor.elevator
-    return None if door is None else floor.behind_door(door, door.recess_mm)
+def _car_centres(floor: Floor) -> list[tuple[float, float]]:
+    """The middle of each elevator door's leaf on ``floor``."""
+    return [floor.behind_door(door, door.recess_mm) for door in floor.elevators]
 
 
 def _hallway_marks(floor: Floor, hallway: Hallway, canvas: _Canvas) -> list[str]:
@@ -252,8 +251,7 @@ def _floor_svg(floor: Floor, canvas: _Canvas, others: Sequence[Floor]) -> list[s
         )
     for hallway in floor.hallways:
         out += _hallway_marks(floor, hallway, canvas)
-    car = _car_centre(floor)
-    if car is not None:
+    for car in _car_centres(floor):
         cx, cy = canvas.point(*car)
         out.append(
             f'<rect class="car" x="{cx - 250:.0f}" y="{cy - 250:.0f}" width="500" height="500">'
@@ -302,14 +300,14 @@ def render_svg(plan: FloorPlan, levels: Sequence[int] | None = None) -> str:
         canvas = _Canvas(frame, index * (frame.height + _GAP_MM))
         body += _floor_svg(floor, canvas, [f for f in floors if f is not floor])
     height = len(floors) * (frame.height + _GAP_MM) - _GAP_MM
-    cars = [car for car in map(_car_centre, floors) if car is not None]
-    if len(floors) > 1 and cars:
-        # Through every panel at the first floor's car: the others' should sit on it.
-        x = cars[0][0] - frame.min_x
-        body.append(
-            f'<line class="shaft" x1="{x:.0f}" y1="0" x2="{x:.0f}" y2="{height:.0f}">'
-            f"<title>elevator shaft</title></line>"
-        )
+    if len(floors) > 1:
+        # Through every panel at each of the first floor's cars: the others' should sit on it.
+        for car in _car_centres(floors[0]):
+            x = car[0] - frame.min_x
+            body.append(
+                f'<line class="shaft" x1="{x:.0f}" y1="0" x2="{x:.0f}" y2="{height:.0f}">'
+                f"<title>elevator shaft</title></line>"
+            )
     return "\n".join(
         [
             f'<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 {frame.width:.0f} '

@@ -34,6 +34,7 @@ DELIVERIES = [
     "linden-far-side",  # 104, past the south wing's mouth
     "linden-other-floor",  # 205, by the elevator, where floor 2's hallway narrows
     "linden-box-in-wing",  # 113, round a box in the east wing
+    "linden-second-car",  # 202 from the east wing, by the nearer of two cars
 ]
 EKF_DELIVERIES = [
     "floor3-elevator",  # turns in the car, a ride, another floor
