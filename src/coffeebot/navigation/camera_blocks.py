@@ -12,8 +12,9 @@ is asked in the hallway frame of the object's floor (``s`` along the axis, ``d``
   its width, motion's ``side_clearance_mm`` to the wall and its ``obstacle_clearance_mm`` to
   the object, the gaps the detour's lanes keep. Navigation then holds ``camera_stop_short_mm``
   short of it and waits until it is gone. Where the route planner had another way it would
-  take it instead; it has none today: the CS building has one hallway per floor, and a
-  :class:`~coffeebot.navigation.route.Route` is one sequence of steps with no alternative.
+  take it instead; it has none today: a :class:`~coffeebot.navigation.route.Route` is the
+  shortest way over the hallways, one sequence of steps (the shipped buildings' hallways
+  form no loop, so there is no other way to offer).
 * **Passable**: everything else on the layer is marked on motion's costmap from afar
   (:meth:`~coffeebot.navigation.costmap.LocalCostmap.mark_camera`), so the detour picks its
   side before the sensors see the thing.
