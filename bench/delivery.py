@@ -67,6 +67,7 @@ class Building:
             body_length_mm=config.geometry.length_mm,
             pivot_mm=config.motor.axle_x_mm,
         )
+        self.give_up_s = config.navigation.blocked_give_up_s
         whole, door = plan.tea_room
         self.start_floor = whole.view_of(door)
         self.start_s = door.at_mm - START_BEFORE_DOOR_MM
@@ -130,7 +131,16 @@ def random_scenario(building: Building, rng: random.Random, index: int) -> Scena
         kind = rng.choice(LANE_OBSTACLES)
         s = rng.uniform(min(near, far), max(near, far))
         x, y = floor.from_hallway(s, math.copysign(half - WALL_GAP_MM[kind], lane))
-        obstacles.append(ObstacleSpec(id=kind, kind=kind, floor=floor.level, x_mm=x, y_mm=y))
+        obstacles.append(
+            ObstacleSpec(
+                id=kind,
+                kind=kind,
+                floor=floor.level,
+                x_mm=x,
+                y_mm=y,
+                heading_deg=floor.hallway.heading_deg,  # its long side along the hallway
+            )
+        )
     if rng.random() < 0.25:
         # On the other side of the hallway from the robot's lane.
         side = -math.copysign(half - 400, lane)
@@ -154,7 +164,8 @@ def random_scenario(building: Building, rng: random.Random, index: int) -> Scena
         name=f"run{index}-{room}" + "".join(f"-{o.kind}" for o in obstacles),
         floorplan=building.path,
         seed=rng.randrange(1_000_000),
-        time_limit_s=200 if same_hallway else 300,
+        # Long enough for a robot blocked for good to give up and say why.
+        time_limit_s=(200 if same_hallway else 300) + building.give_up_s,
         start=building.start(room),
         orders=[OrderSpec(room=room, at_s=2.0)],
         obstacles=obstacles,
