@@ -295,6 +295,43 @@ async def test_silent_motor_controller_is_the_orders_reason_at_once(rig) -> None
     await stop([motion])
 
 
+async def edging_up_while_waiting(board: Board) -> None:
+    """Motion that waits for something ahead it cannot pass, and edges 150 mm nearer it
+    every minute: never getting on."""
+    remaining = 4000.0
+    while True:
+        for state in (MotionState.WAITING, MotionState.BLOCKED):
+            instruction = board.latest(MOVE_INSTRUCTION)
+            if instruction is not None:
+                board.publish(
+                    MOTION_STATUS,
+                    MotionStatus(
+                        instruction_id=instruction.msg.id,
+                        state=state,
+                        remaining_mm=remaining,
+                        detail="something moving ahead, waiting",
+                    ),
+                )
+            await board.clock.sleep(1.0)
+        if int(board.clock.now()) % 60 == 0:
+            remaining -= 150.0
+
+
+async def test_edging_up_to_what_it_waits_for_is_not_getting_on(rig) -> None:
+    clock, board, daemon, statuses = rig
+    motion = asyncio.create_task(edging_up_while_waiting(board))
+    await daemon.start()
+    board.publish(ORDER_DISPATCH, OrderDispatch(order_id="o8", room="205", drink="tea"))
+    await clock.advance(1.0)
+    board.publish(OPERATOR_EVENT, OperatorEvent(kind="cup_loaded", order_id="o8"))
+    await clock.advance(CONFIG.navigation.blocked_give_up_s + 60.0)
+    failed = [e.msg for e in iter(statuses.get_nowait, None) if e.msg.status.final]
+    assert [(u.status, u.problem) for u in failed] == [
+        (OrderStatus.FAILED, DeliveryProblem.BLOCKED)
+    ]
+    await stop([motion])
+
+
 async def test_a_crash_on_the_way_does_not_strand_the_order(rig) -> None:
     """Navigation crashing in the middle of a delivery is restarted by the supervisor, and
     the delivery goes on from where the robot is: the order is not left "on the way" with

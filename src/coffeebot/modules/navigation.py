@@ -76,8 +76,10 @@ POLL_S = 0.2
 NOT_MOVING = (MotionState.WAITING, MotionState.BLOCKED, MotionState.SAFETY_STOP)
 
 PROGRESS_MM = 100.0
-"""Getting this much nearer the end of a move counts as progress: creeping to and fro round
-something without getting on is as blocked as standing still."""
+"""Getting this much nearer the end of a move, driving, counts as progress: creeping to and
+fro round something without getting on is as blocked as standing still, and so is edging up
+to something while waiting for it (a robot that crept 100 mm nearer a mail cart it could not
+pass every minute or two, waiting, never gave up)."""
 
 
 class DeliveryAborted(DeliveryError):
@@ -232,7 +234,11 @@ class NavigationModule(Module):
                 if reported_blocked:
                     self._progress(ctx, f"on the way again: {move.instruction.detail}")
                 return None
-            if status.remaining_mm is not None and status.remaining_mm < nearest - PROGRESS_MM:
+            if (
+                status.state not in NOT_MOVING
+                and status.remaining_mm is not None
+                and status.remaining_mm < nearest - PROGRESS_MM
+            ):
                 nearest, progressed = status.remaining_mm, heard
             held = status.since_s if status.state in NOT_MOVING else 0.0
             stalled = heard - progressed
