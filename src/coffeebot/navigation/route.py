@@ -1,10 +1,12 @@
-"""Routes computed from the floor plan: base -> hallway -> (elevator ->) door -> base.
+"""Routes computed from the floor plan: base -> hallways -> (elevator ->) door -> base.
 
 A route is a list of steps. A :class:`Move` is one instruction for the motion module; an
 :class:`ElevatorRide` is the elevator procedure (call, wait for doors, enter, ride, confirm
 the floor, exit) with the moves it needs inside. Nothing is written per room: every point is
-derived from the floor plan's hallway frame (``s`` along the axis, ``d`` to its left), the
-doors' positions and sides, and the robot's width.
+derived from the frame of the hallway it lies along (``s`` along the axis, ``d`` to its
+left), the doors' positions and sides, and the robot's width. Between hallways the way is
+the shortest over where they meet (:mod:`coffeebot.navigation.hallway_graph`); to another
+floor, through the car the caller names (the first that stops on both, by default).
 
 Lanes follow the seed's courtesy rule: keep right at ``wall_distance_mm`` between the body's
 side and the wall, so the lane's centre line sits ``half_width - wall_distance - body/2`` from
