@@ -59,14 +59,7 @@ class Building:
     def __init__(self, plan: FloorPlan, path: Path, config: RobotConfig) -> None:
         self.plan = plan
         self.path = path
-        self.planner = RoutePlanner(
-            plan,
-            config.motion,
-            config.navigation,
-            config.geometry.width_mm,
-            body_length_mm=config.geometry.length_mm,
-            pivot_mm=config.motor.axle_x_mm,
-        )
+        self.planner = RoutePlanner.for_robot(plan, config)
         self.give_up_s = config.navigation.blocked_give_up_s
         whole, door = plan.tea_room
         self.start_floor = whole.view_of(door)

@@ -812,14 +812,7 @@ def load(direction: float = 1.0) -> tuple[RobotConfig, FloorPlan, Lane]:
     config = load_robot_config(BOARD_PATH)
     plan = load_floorplan(PLAN_PATH)
     floor = plan.floor(FLOOR)
-    planner = RoutePlanner(
-        plan,
-        config.motion,
-        config.navigation,
-        config.geometry.width_mm,
-        body_length_mm=config.geometry.length_mm,
-        pivot_mm=config.motor.axle_x_mm,
-    )
+    planner = RoutePlanner.for_robot(plan, config)
     lane = Lane(
         floor,
         direction,

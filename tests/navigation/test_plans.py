@@ -14,23 +14,8 @@ from coffeebot.navigation.passing import right_lane_mm
 from coffeebot.navigation.path import route_legs
 from coffeebot.navigation.route import ElevatorRide, Lease, Move, RoutePlanner
 
-PLANNER = RoutePlanner(
-    PLAN,
-    CONFIG.motion,
-    CONFIG.navigation,
-    CONFIG.geometry.width_mm,
-    body_length_mm=CONFIG.geometry.length_mm,
-    pivot_mm=CONFIG.motor.axle_x_mm,
-)
-FLEET_ROBOT = RoutePlanner(
-    PLAN,
-    CONFIG.motion,
-    CONFIG.navigation,
-    CONFIG.geometry.width_mm,
-    body_length_mm=CONFIG.geometry.length_mm,
-    pivot_mm=CONFIG.motor.axle_x_mm,
-    parking=PLAN.floor(2).parking[1],
-)
+PLANNER = RoutePlanner.for_robot(PLAN, CONFIG)
+FLEET_ROBOT = RoutePlanner.for_robot(PLAN, CONFIG, PLAN.floor(2).parking[1])
 """A robot of a fleet, parked at the tea room's second spot."""
 
 

@@ -13,14 +13,7 @@ from coffeebot.navigation.path import nearest
 from coffeebot.navigation.route import ElevatorRide, Move, RoutePlanner
 
 LINDEN = load_floorplan(ROOT / "floorplans" / "linden-hall.toml")
-PLANNER = RoutePlanner(
-    LINDEN,
-    CONFIG.motion,
-    CONFIG.navigation,
-    CONFIG.geometry.width_mm,
-    body_length_mm=CONFIG.geometry.length_mm,
-    pivot_mm=CONFIG.motor.axle_x_mm,
-)
+PLANNER = RoutePlanner.for_robot(LINDEN, CONFIG)
 PIVOT = CONFIG.motor.axle_x_mm
 
 

@@ -22,14 +22,7 @@ class TravelTimes:
     def __init__(self, plan: FloorPlan, config: RobotConfig, pace: Pace) -> None:
         self.plan = plan
         self.pace = pace
-        self.planner = RoutePlanner(
-            plan,
-            config.motion,
-            config.navigation,
-            config.geometry.width_mm,
-            body_length_mm=config.geometry.length_mm,
-            pivot_mm=config.motor.axle_x_mm,
-        )
+        self.planner = RoutePlanner.for_robot(plan, config)
         self.base_to = cache(self._base_to)
         """Seconds from the loading spot to ``room``'s door (the same for every order)."""
 

@@ -126,14 +126,8 @@ class NavigationModule(Module):
         self.config = config
         self.nav = config.navigation
         self.fleet = config.fleet.enabled
-        self.planner = RoutePlanner(
-            plan,
-            config.motion,
-            config.navigation,
-            config.geometry.width_mm,
-            body_length_mm=config.geometry.length_mm,
-            pivot_mm=config.motor.axle_x_mm,
-            parking=parking_spot(config, plan) if self.fleet else None,
+        self.planner = RoutePlanner.for_robot(
+            plan, config, parking_spot(config, plan) if self.fleet else None
         )
         self.blocks = BlockRule.from_config(config)
         self._ids = itertools.count(1)

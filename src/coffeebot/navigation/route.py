@@ -47,7 +47,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
-from coffeebot.config import MotionConfig, NavigationConfig
+from coffeebot.config import MotionConfig, NavigationConfig, RobotConfig
 from coffeebot.floorplan import Door, Floor, FloorPlan, ParkingSpot
 from coffeebot.messages import MoveInstruction, SharedPlace
 from coffeebot.navigation.hallway_graph import hops
@@ -140,6 +140,21 @@ class RoutePlanner:
         self.body_length_mm = body_length_mm
         self.pivot_mm = pivot_mm
         self.parking = parking
+
+    @classmethod
+    def for_robot(
+        cls, plan: FloorPlan, config: RobotConfig, parking: ParkingSpot | None = None
+    ) -> RoutePlanner:
+        """The planner for the robot ``config`` describes (its body, its axle, its lanes)."""
+        return cls(
+            plan,
+            config.motion,
+            config.navigation,
+            config.geometry.width_mm,
+            body_length_mm=config.geometry.length_mm,
+            pivot_mm=config.motor.axle_x_mm,
+            parking=parking,
+        )
 
     # --- places ----------------------------------------------------------------------------
 
