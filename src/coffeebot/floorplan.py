@@ -72,7 +72,7 @@ class Hallway(_Model):
     """One straight hallway segment: an axis from ``start`` to ``end`` and a width. Its own
     frame: ``s`` along the axis from ``start``, ``d`` across it, left positive looking from
     start to end. Where hallways meet (an L, a T, a width change) is found from their axes
-    (:func:`junctions`)."""
+    (:attr:`Floor.meetings`)."""
 
     id: str = Field(min_length=1)
     start: tuple[Coordinate, Coordinate]
@@ -244,9 +244,14 @@ class Frame(_Model):
     leaf_mm: StrictFloat = Field(60.0, gt=0, le=300, description="a fire door leaf's thickness")
 
     @property
+    def jambs(self) -> tuple[float, float]:
+        """Along the hallway: where the jambs stand."""
+        return self.at_mm - self.depth_mm / 2, self.at_mm + self.depth_mm / 2
+
+    @property
     def span(self) -> tuple[float, float]:
         """Along the hallway: the jambs and, for a fire door, the leaves folded back."""
-        lo, hi = self.at_mm - self.depth_mm / 2, self.at_mm + self.depth_mm / 2
+        lo, hi = self.jambs
         if self.kind == "fire_door":
             if self.opens == "end":
                 hi += self.clear_width_mm / 2
@@ -413,17 +418,23 @@ class Floor(_Model):
         return self.view(min(self.hallways, key=outside).id)
 
     def view_of(self, feature: Door | Opening | AngleZone | Frame) -> Floor:
-        """The view of the hallway a door, opening or angle zone lies along."""
-        return self.view(self.hallway_of(feature).id)
+        """The view of the hallway a door, opening, angle zone or frame lies along."""
+        return self.view(self._hallway_id(feature))
 
     def hallway_of(self, feature: Door | Opening | AngleZone | Frame) -> Hallway:
-        """The hallway a door, opening or angle zone lies along."""
-        if feature.hallway is None:
-            return self.hallways[0]
-        return next(h for h in self.hallways if h.id == feature.hallway)
+        """The hallway a door, opening, angle zone or frame lies along."""
+        return next(h for h in self.hallways if h.id == self._hallway_id(feature))
+
+    def _hallway_id(self, feature: Door | Opening | AngleZone | Frame) -> str:
+        """The feature's hallway (on a floor of one, it need not say)."""
+        return feature.hallway or self.hallways[0].id
 
     def _lies_along(self, feature: Door | Opening | AngleZone | Frame, hallway: Hallway) -> bool:
-        return (feature.hallway or self.hallways[0].id) == hallway.id
+        return self._hallway_id(feature) == hallway.id
+
+    def _name(self, hallway: Hallway) -> str:
+        """How walls and warnings name a hallway: by its id where there are several."""
+        return "hallway" if len(self.hallways) == 1 else f"hallway {hallway.id}"
 
     # --- hallway frame ---------------------------------------------------------------------
 
@@ -640,7 +651,7 @@ class Floor(_Model):
     def _hallway_segments(self, hallway: Hallway) -> Iterator[WallSegment]:
         """One hallway's walls, with its doors, openings and the gaps of those joining it."""
         h = self.wall_height_mm
-        name = "hallway" if len(self.hallways) == 1 else f"hallway {hallway.id}"
+        name = self._name(hallway)
         half = hallway.width_mm / 2
         lo_mm, hi_mm, start_open, end_open = self.extents[hallway.id]
 
@@ -688,7 +699,7 @@ class Floor(_Model):
         """A frame's two jambs, from the wall lines in to its opening; a fire door's leaves
         folded back flat against the walls beside it."""
         half, inner = hallway.width_mm / 2, frame.clear_width_mm / 2
-        lo, hi = frame.at_mm - frame.depth_mm / 2, frame.at_mm + frame.depth_mm / 2
+        lo, hi = frame.jambs
         h = self.wall_height_mm
 
         def box(
@@ -799,9 +810,10 @@ class FloorPlan(_Model):
     @property
     def tea_room(self) -> RoomLocation:
         """The first pickup point: a fleet's base, where its robots park and are loaded."""
-        if not self.tea_rooms:
+        first = next(iter(self.tea_rooms), None)
+        if first is None:
             raise KeyError("floor plan has no tea room")
-        return self.tea_rooms[0]
+        return first
 
     @property
     def rooms(self) -> list[str]:
@@ -810,7 +822,7 @@ class FloorPlan(_Model):
             d.room
             for f in self.floors
             for h in f.hallways
-            for d in sorted(f.view(h.id).features(), key=lambda d: d.at_mm)
+            for d in f.view(h.id).features()
             if isinstance(d, Door) and d.kind == "office"
         ]
         return list(dict.fromkeys(doors))  # a room of two doors once
@@ -1179,11 +1191,16 @@ def _elevator_front(floor: Floor, door: Door) -> tuple[np.ndarray, np.ndarray]:
     return centre, inward / np.linalg.norm(inward)
 
 
+def _facing_alike(inward_a: np.ndarray, inward_b: np.ndarray) -> bool:
+    """Whether two elevator doors open the same way (within 45 degrees)."""
+    return float(inward_a @ inward_b) >= math.cos(math.radians(45))
+
+
 def _same_car(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray]) -> bool:
     """Whether two elevator doors (:func:`_elevator_front`) open one car."""
     (centre_a, inward_a), (centre_b, inward_b) = a, b
-    facing = float(inward_a @ inward_b) >= math.cos(math.radians(45))
-    return facing and float(np.linalg.norm(centre_a - centre_b)) <= ELEVATOR_TOLERANCE_MM
+    near = float(np.linalg.norm(centre_a - centre_b)) <= ELEVATOR_TOLERANCE_MM
+    return near and _facing_alike(inward_a, inward_b)
 
 
 def _check_elevator_aligned(plan: FloorPlan, path: str | Path) -> None:
@@ -1206,7 +1223,7 @@ def _check_elevator_aligned(plan: FloorPlan, path: str | Path) -> None:
         _, other_floor, other = min(others, key=lambda o: o[0])
         other_centre, other_inward = _elevator_front(other_floor, other)
         where = f"floor {floor.level} / door {door.id}"
-        if float(inward @ other_inward) < math.cos(math.radians(45)):
+        if not _facing_alike(inward, other_inward):
             raise FloorPlanError(
                 path,
                 where,
@@ -1271,7 +1288,7 @@ def _uwb_coverage_gaps(floor: Floor, uwb_range_mm: float) -> list[PlanWarning]:
         )
         in_range = (distances <= uwb_range_mm).sum(axis=1)
         short = in_range < MIN_ANCHORS
-        name = "hallway" if len(floor.hallways) == 1 else f"hallway {hallway.id}"
+        name = floor._name(hallway)
         for is_short, run in itertools.groupby(range(len(along)), key=lambda i: bool(short[i])):
             if not is_short:
                 continue

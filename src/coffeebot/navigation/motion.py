@@ -541,7 +541,7 @@ class MotionController:
         with its side 50 mm from a jamb)."""
         reach = self.footprint.length_mm / 2
         for frame in floor.frames_along():
-            lo, hi = frame.at_mm - frame.depth_mm / 2, frame.at_mm + frame.depth_mm / 2
+            lo, hi = frame.jambs
             near, far = (lo, hi) if direction > 0 else (hi, lo)
             if (near - s) * direction <= FRAME_LEAD_MM and (far - s) * direction >= -reach:
                 limit = max(

@@ -384,10 +384,9 @@ class RoutePlanner:
 
     # --- between hallways -------------------------------------------------------------------
 
-    def _view_of(self, level: int, door: Door | None) -> Floor:
+    def _view_of(self, level: int, door: Door) -> Floor:
         """Floor ``level`` as seen along the hallway ``door`` opens on."""
-        floor = self.plan.floor(level)
-        return floor if door is None else floor.view_of(door)
+        return self.plan.floor(level).view_of(door)
 
     def _aim_mm(self, floor: Floor, s: float, door: Door) -> float:
         """Where along ``floor``'s hallway the way to ``door`` goes: the door, if it opens on
