@@ -15,7 +15,6 @@ import math
 from collections.abc import Callable, Sequence
 
 import numpy as np
-from numba import njit
 
 from coffeebot.config import TofSensorConfig
 from coffeebot.floorplan import Floor
@@ -55,47 +54,18 @@ def segment_ranges(
     """Range (n, r) from each origin (n, 2) to the first of the segments ``seg`` (k, 4:
     x0, y0, x1, y1) along each of its rays ``angles`` (n, r), inf where there is none within
     its ``reach`` (n,)."""
-    ranges = np.full(np.shape(angles), math.inf)
-    if seg.size:
-        _first_crossings(
-            np.ascontiguousarray(seg, dtype=float),
-            np.ascontiguousarray(origins, dtype=float),
-            np.cos(angles),
-            np.sin(angles),
-            np.ascontiguousarray(reach, dtype=float),
-            ranges,
-        )
-    return ranges
-
-
-@njit(cache=True, error_model="numpy")
-def _first_crossings(
-    seg: np.ndarray,
-    origins: np.ndarray,
-    dx: np.ndarray,
-    dy: np.ndarray,
-    reach: np.ndarray,
-    ranges: np.ndarray,
-) -> None:
-    """Lower ``ranges`` (n, r) to where each ray (direction ``dx``, ``dy``) first crosses a
-    segment within ``reach``. A compiled loop: asked for every sensor at every scan by the
-    collision monitor and the costmap, as whole-array numpy it was a dozen passes over small
-    (sensor, ray, segment) temporaries, mostly those passes' own overhead; the arithmetic is
-    the same, in the same order, to the bit."""
-    for k in range(seg.shape[0]):
-        ex = seg[k, 2] - seg[k, 0]
-        ey = seg[k, 3] - seg[k, 1]
-        for i in range(dx.shape[0]):
-            wx = seg[k, 0] - origins[i, 0]
-            wy = seg[k, 1] - origins[i, 1]
-            for j in range(dx.shape[1]):
-                denom = dx[i, j] * ey - dy[i, j] * ex
-                if abs(denom) <= 1e-9:
-                    continue
-                t = (wx * ey - wy * ex) / denom
-                u = (wx * dy[i, j] - wy * dx[i, j]) / denom
-                if 0 < t <= reach[i] and 0 <= u <= 1 and t < ranges[i, j]:
-                    ranges[i, j] = t
+    if seg.size == 0:
+        return np.full(np.shape(angles), math.inf)
+    x, y = origins[:, 0, None, None], origins[:, 1, None, None]  # (n, 1, 1)
+    dx, dy = np.cos(angles)[..., None], np.sin(angles)[..., None]  # (n, r, 1)
+    ex, ey = seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1]  # (k,)
+    wx, wy = seg[:, 0] - x, seg[:, 1] - y  # (n, 1, k)
+    denom = dx * ey - dy * ex
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (wx * ey - wy * ex) / denom
+        u = (wx * dy - wy * dx) / denom
+    hit = (np.abs(denom) > 1e-9) & (t > 0) & (u >= 0) & (u <= 1) & (t <= reach[:, None, None])
+    return np.where(hit, t, math.inf).min(axis=-1)
 
 
 def explained_points(
