@@ -25,7 +25,7 @@ import cv2
 import numpy as np
 
 from coffeebot.cameras.geometry import nominal_homography, project, to_plane
-from coffeebot.floorplan import Camera, FloorPlanError
+from coffeebot.floorplan.features import Camera, FloorPlanError
 
 MIN_MARKS = 4
 """A homography has eight unknowns, each mark gives two equations."""

@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from coffeebot.floorplan import Camera
+from coffeebot.floorplan.features import Camera
 
 
 def focal_px(camera: Camera) -> float:
