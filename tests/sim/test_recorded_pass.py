@@ -50,7 +50,8 @@ ROOT = Path(__file__).resolve().parents[2]
 CONFIG = load_robot_config(ROOT / "boards" / "coffeebot-v1.toml")
 PLAN = load_floorplan(ROOT / "floorplans" / "cs-building.toml")
 SPEED = 4.0
-"""Clock speed-up; docs/scenarios.md ("Speed"): scans stay near their real rate up to 4x."""
+"""Paced, not flat out: the recorder's writer thread keeps the machine's time and skips a
+sensor value when it lags (docs/scenarios.md, "Speed"), and this test reads the recording."""
 LANE_MM = 0.0
 """The hallway's centre line: both walls ~600 mm from the side sensors, so the two doors
 are seen on every pass. (Keeping right puts the left wall ~890 mm away, near the noisy
