@@ -211,9 +211,7 @@ def bench_door(
                 setup=robot_setup(config.tof),
             )
             distance_m += (rows[-1].s_mm - rows[0].s_mm) / 1000.0
-            detector = DoorDetector(
-                config.tof.sensors, config.door, config.tof.cone_half_deg
-            )
+            detector = DoorDetector(config.tof.sensors, config.door, config.tof.cone_half_deg)
             events = []
             for k, row in enumerate(rows[1:], start=1):
                 step = math.dist(row.pose[:2], rows[k - 1].pose[:2]) * SCAN_HZ

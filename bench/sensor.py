@@ -92,9 +92,9 @@ def scenes() -> Iterator[Scene]:
             for reflectance, name in targets:
                 for d in (100, 200, 400, 700, 1000, 1500, 2000, 3000, 3600, 4000):
                     fact = facts.get((d, reflectance, budget), "")
-                    if (light == "dark" and "sunlight" in fact) or (light != "dark" and (
-                        "dark" in fact or "table" in fact
-                    )):
+                    if (light == "dark" and "sunlight" in fact) or (
+                        light != "dark" and ("dark" in fact or "table" in fact)
+                    ):
                         fact = ""
                     yield Scene(
                         f"wall {name} at {d} mm, {light}, {budget} ms",
@@ -192,9 +192,7 @@ def measure(scene: Scene, optics: ConeOptics, rangings: int, seed: int) -> dict[
     row["signal_mcps"] = round(returns.signal_mcps, 3)
     row["sigma_mm"] = round(float(np.median([r.sigma_mm for r in readings])), 1)
     row["nearest_mm"] = nearest
-    row["mean_over_nearest"] = (
-        None if mean is None or not nearest else round(mean / nearest, 3)
-    )
+    row["mean_over_nearest"] = None if mean is None or not nearest else round(mean / nearest, 3)
     row["published"] = scene.published
     return row
 

@@ -103,8 +103,11 @@ def test_messages_round_trip_and_bad_ones_name_the_field() -> None:
     with pytest.raises(BadMessage, match="payload"):
         decode(InstantAction, topic, b"not json")
     with pytest.raises(BadMessage, match="unexpected"):
-        decode(Assignment, topic, b'{"assignment_id":"x","order_id":"o","room":"1","drink":"d",'
-               b'"unexpected":1}')
+        decode(
+            Assignment,
+            topic,
+            b'{"assignment_id":"x","order_id":"o","room":"1","drink":"d","unexpected":1}',
+        )
     assert parse_robot_topic(topic) == ("robot-1", "assignment")
     for foreign in ("coffeebot/v2/robots/r/state", "coffeebot/v1/robots/R#/state", "other"):
         with pytest.raises(BadMessage):

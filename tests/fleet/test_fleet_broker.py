@@ -74,8 +74,13 @@ class StandInNavigation(Module):
 
     async def run(self, ctx: ModuleContext) -> None:
         pose = PoseEstimate(
-            x_mm=self.at[0], y_mm=self.at[1], heading_deg=90, floor=2, sigma_x_mm=30,
-            sigma_y_mm=30, sigma_heading_deg=1,
+            x_mm=self.at[0],
+            y_mm=self.at[1],
+            heading_deg=90,
+            floor=2,
+            sigma_x_mm=30,
+            sigma_y_mm=30,
+            sigma_heading_deg=1,
         )
         ctx.board.publish(CURRENT_STATE, CurrentState(pose=pose))
         with ctx.board.subscribe(ORDER_DISPATCH) as dispatches:
@@ -114,7 +119,10 @@ class StandInNavigation(Module):
 
 def robot_config(broker: Mosquitto, robot: str) -> RobotConfig:
     fleet = FleetConfig(
-        broker=broker.address.url, robot_id=robot, state_hz=10, lease_renew_s=0.5,
+        broker=broker.address.url,
+        robot_id=robot,
+        state_hz=10,
+        lease_renew_s=0.5,
         lease_wait_s=600,
     )
     return BOARD.model_copy(update={"fleet": fleet})
@@ -134,7 +142,12 @@ class Fleet:
             }
         )
         self.dispatcher: DispatcherRuntime = dispatcher_runtime(
-            config, PLAN, store, broker.address.url, broker.credentials["dispatcher"], clock,
+            config,
+            PLAN,
+            store,
+            broker.address.url,
+            broker.credentials["dispatcher"],
+            clock,
             web=web,
         )
         self.robots: dict[str, Daemon] = {}
@@ -201,9 +214,7 @@ async def test_an_order_goes_to_a_robot_and_is_delivered_over_the_broker(fleet: 
     placed = await fleet.order()
     order = await fleet.until_status(placed.id, OrderStatus.PREPARING)
     assert order.robot in ROBOTS
-    await fleet.until(
-        lambda: _ready(fleet, placed.id), "the robot reports it is ready for the cup"
-    )
+    await fleet.until(lambda: _ready(fleet, placed.id), "the robot reports it is ready for the cup")
     fleet.act("cup_loaded", placed.id)
     await fleet.until_status(placed.id, OrderStatus.ARRIVED)
     fleet.act("pickup_confirmed", placed.id)
@@ -276,8 +287,11 @@ async def test_cancel_works_before_the_robot_acknowledged_and_reaches_the_robot(
         finally:
             ticker.cancel()
     assert kinds["assignment"]["order_id"] == placed.id
-    assert kinds["action"] == {"action_id": kinds["action"]["action_id"], "kind": "cancel",
-                               "order_id": placed.id}
+    assert kinds["action"] == {
+        "action_id": kinds["action"]["action_id"],
+        "kind": "cancel",
+        "order_id": placed.id,
+    }
 
 
 async def _free_robot(client: aiomqtt.Client) -> None:
@@ -289,8 +303,15 @@ async def _free_robot(client: aiomqtt.Client) -> None:
     boot_s = time.time()
     for seq in range(10_000):
         state = RobotState(
-            seq=seq, at_s=time.time(), boot_s=boot_s, reports=0, floor=2, x_mm=42000,
-            y_mm=-1650, heading_deg=90, health=HealthStatus.RUNNING,
+            seq=seq,
+            at_s=time.time(),
+            boot_s=boot_s,
+            reports=0,
+            floor=2,
+            x_mm=42000,
+            y_mm=-1650,
+            heading_deg=90,
+            health=HealthStatus.RUNNING,
         )
         await client.publish(robot_topic("robot-1", "state"), encode(state))
         await asyncio.sleep(0.1)
@@ -317,8 +338,11 @@ async def test_a_bad_message_is_refused_counted_and_changes_nothing(
     await fleet.until_status(placed.id, OrderStatus.PREPARING)
     login = broker.credentials["robot-1"]
     async with aiomqtt.Client(
-        broker.address.host, broker.address.port, username=login.username,
-        password=login.password, identifier="test-garbage",
+        broker.address.host,
+        broker.address.port,
+        username=login.username,
+        password=login.password,
+        identifier="test-garbage",
     ) as client:
         await client.publish(robot_topic("robot-1", "delivery"), b'{"seq": "x"}', qos=1)
         await client.publish(robot_topic("robot-1", "state"), b"\xff not json", qos=1)

@@ -173,8 +173,7 @@ def test_a_reading_the_sensor_reports_unsure_is_not_used() -> None:
     unsure = s.model_copy(
         update={
             "readings": [
-                r.model_copy(update={"sigma_mm": 60.0}) if r.sensor == 1 else r
-                for r in s.readings
+                r.model_copy(update={"sigma_mm": 60.0}) if r.sensor == 1 else r for r in s.readings
             ]
         }
     )

@@ -86,9 +86,7 @@ async def run_once() -> list[Sample]:
 
 @contextlib.contextmanager
 def two_busy_processes() -> Iterator[None]:
-    burners = [
-        subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2)
-    ]
+    burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2)]
     try:
         yield
     finally:

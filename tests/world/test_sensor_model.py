@@ -144,9 +144,7 @@ def test_status_rules_follow_the_chip_thresholds() -> None:
     rng = np.random.default_rng(0)
     assert range_once(grey_far, lenient, None, rng).status is ReadingStatus.VALID
     short = RangingSetup(max_range_mm=1300, short_mode=True)
-    assert range_once(returns(wall(2000)), short, None, rng).status is (
-        ReadingStatus.OUT_OF_BOUNDS
-    )
+    assert range_once(returns(wall(2000)), short, None, rng).status is (ReadingStatus.OUT_OF_BOUNDS)
     # A blend of a pole and a wall reports a larger sigma than the wall alone: a limit
     # between the two fails the blend only.
     blend, alone = returns(wall(1500) + pole(500)), returns(wall(950))

@@ -21,9 +21,7 @@ class DoorModule(Module):
 
     def __init__(self, config: RobotConfig, plan: FloorPlan) -> None:
         self.plan = plan
-        self.detector = DoorDetector(
-            config.tof.sensors, config.door, config.tof.cone_half_deg
-        )
+        self.detector = DoorDetector(config.tof.sensors, config.door, config.tof.cone_half_deg)
         self.scan_rate_hz = config.tof.scan_rate_hz or DEFAULT_SCAN_RATE_HZ
 
     def _target_door(self, ctx: ModuleContext) -> str | None:
