@@ -70,7 +70,7 @@ _COLUMNS = "seq, id, room, drink, name, notes, status, detail, created_at, updat
 
 
 class Keep:
-    """ "Leave it as it is" for an optional column (``None`` there means "no robot")."""
+    """An optional column left as it is (``None`` there means "no robot")."""
 
 
 KEEP = Keep()
