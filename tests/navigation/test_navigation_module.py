@@ -479,3 +479,61 @@ async def test_a_fleet_robot_calls_the_car_as_soon_as_it_is_its() -> None:
     out_of_room = seen.index(("move", "out of Tea room"))
     assert ("call", "2") in seen[:out_of_room]
     assert seen.index(("move", "to the loading spot")) < seen.index(("call", "2"))
+
+
+async def grant_leases_but_the_spot_until(board: Board, stand: Stand, after: str) -> None:
+    """A fleet bridge whose dispatcher grants every place at once but the loading spot, and
+    that one only once the robot finished the move ``after`` (empty: at once)."""
+    wanted: set[str] = set()
+    shown: set[str] | None = None
+    with board.subscribe(LEASE_NEED) as needs:
+        while True:
+            while (envelope := needs.get_nowait()) is not None:
+                (wanted.add if envelope.msg.want else wanted.discard)(envelope.msg.place)
+            spot_free = not after or after in stand.done
+            held = {p for p in wanted if p != "loading_spot" or spot_free}
+            if held != shown:
+                board.publish(LEASE_STATE, LeaseState.model_validate(dict.fromkeys(held, True)))
+                shown = held
+            await asyncio.sleep(0)
+
+
+async def home_from_floor_3(spot_free_after: str) -> list[str]:
+    """A fleet's robot delivers to 305 and comes home, the loading spot its once it finished
+    the move ``spot_free_after``; the details of its moves from the pickup on."""
+    clock, board, daemon, stand = fleet_robot_on_its_spot()
+    tasks = [
+        asyncio.create_task(stand.motion()),
+        asyncio.create_task(stand.lift()),
+        asyncio.create_task(grant_leases_but_the_spot_until(board, stand, "")),
+    ]
+    try:
+        await daemon.start()
+        await dispatch_and_load(clock, board, "305")
+        await stop(tasks[-1:])
+        tasks[-1] = asyncio.create_task(
+            grant_leases_but_the_spot_until(board, stand, spot_free_after)
+        )
+        picked_at = len(stand.done)
+        board.publish(OPERATOR_EVENT, OperatorEvent(kind="pickup_confirmed", order_id="o1"))
+        await clock.advance(5.0)
+        assert stand.done[-1] == "parked", "not home"
+        return stand.done[picked_at:]
+    finally:
+        await stop(tasks)
+        await daemon.shutdown()
+
+
+async def test_a_fleet_robot_out_of_the_car_drives_straight_in_when_the_spot_is_free() -> None:
+    """Back from floor 3 with the loading spot free as the car's doors open, the robot
+    turns into the tea room from where it came out of the car; through the holding point it
+    took some 20 s longer, holding the point and the spot. Without the spot by then it goes
+    to the point and waits there, as before."""
+    straight = await home_from_floor_3(spot_free_after="")
+    out = straight.index("out of the elevator on floor 2")
+    assert straight[out + 1 : out + 3] == ["facing Tea room", "into Tea room"]
+    assert "to the holding point" not in straight
+    waited = await home_from_floor_3(spot_free_after="to the holding point")
+    out = waited.index("out of the elevator on floor 2")
+    assert waited[out + 1 : out + 3] == ["to the holding point", "facing back"]
+    assert "into Tea room" in waited[out + 3 :]
