@@ -71,6 +71,10 @@ NO_ROOM_TO_MAKE = "no room to turn into the lane, and no way towards the hallway
 FRAME_LEAD_MM = 1500.0
 """How far ahead of a door frame across the hallway the lane moves in to pass its opening."""
 
+HALF_TURN_DEG = 150.0
+"""A turn at least this large, in the hallway beside a wall, goes the way that swings the
+front through the hallway's middle (:meth:`MotionController._way_round`)."""
+
 MAKE_ROOM_MM = 3000.0
 """How far a robot whose turn into the lane has no room drives towards the hallway's centre
 line to find room, before it calls itself blocked: the centre is at most half the hallway
@@ -107,6 +111,8 @@ class MotionController:
         self.detour = DetourPlanner(cfg, costmap, footprint)
         self._line: float | None = None
         """``drive_to``: the direction of the line being followed, fixed at its start."""
+        self._way: float | None = None
+        """``turn``: which way round (+1 left, -1 right, 0 the shorter), fixed at its start."""
         self._traffic: Traffic | None = None
         self._traffic_at = 0.0
         self.passing: str | None = None
@@ -195,6 +201,7 @@ class MotionController:
             self._instruction_id = instruction.id
             self.detour.reset()
             self._line = None
+            self._way = None
             self._room_from = None
             self._state = MotionState.MOVING
             self._since = now
@@ -228,7 +235,34 @@ class MotionController:
         if abs(error) <= self.cfg.heading_tolerance_deg:
             status = self._status(ins.id, MotionState.DONE, now, 0.0, "turned")
             return self._command(0.0, 0.0, dt, status, limit)
-        return self._spin(ins, pose, wanted, now, dt, limit, None, f"turning, {error:.0f} deg")
+        if self._way is None:
+            floor = self.plan.floor(pose.floor).view_near(pose.x_mm, pose.y_mm)
+            self._way = self._way_round(floor, pose, error, now)
+        aim, left = wanted, error
+        if self._way * error < 0:  # the long way round: towards a quarter turn ahead
+            aim, left = pose.heading_deg + self._way * 90.0, error + self._way * 360.0
+        return self._spin(ins, pose, aim, now, dt, limit, None, f"turning, {left:.0f} deg")
+
+    def _way_round(self, floor: Floor, pose: PoseEstimate, error: float, now: float) -> float:
+        """Which way a turn of ``error`` degrees goes (0: the shorter). A half turn in the
+        hallway off its centre line, facing along it, goes the way that swings the front
+        (near the axle) through the hallway's middle and the rear (the far end, whose
+        corners swing half a metre) along the nearer wall, if that sweep has room. Swung the
+        other way, a robot turning round at an office door swept its rear across the
+        hallway into a robot that had come up beside the other wall, and the two stood
+        pressed together for good."""
+        if abs(error) < HALF_TURN_DEG:
+            return 0.0
+        d = floor.to_hallway(pose.x_mm, pose.y_mm)[1]
+        along = math.cos(math.radians(pose.heading_deg - floor.hallway.heading_deg))
+        if not CENTRE_LINE_MM < abs(d) <= floor.hallway.width_mm / 2.0 or abs(along) < 0.5:
+            return 0.0  # on the centre line, in a doorway or a room, or facing across
+        way = -math.copysign(1.0, d) * math.copysign(1.0, along)
+        if way * error > 0:
+            return 0.0  # the shorter way is that way
+        turn = error + way * 360.0
+        free = self._turn_is_free(pose, 0.0, now, self._spin_room, turn_deg=turn)
+        return way if free else 0.0
 
     def _spin(
         self,
@@ -633,14 +667,21 @@ class MotionController:
         return standing and not self._turn_is_free(pose, wanted_deg, now, self._spin_room)
 
     def _turn_is_free(
-        self, pose: PoseEstimate, aim_deg: float, now: float, clearances: Clearances | None = None
+        self,
+        pose: PoseEstimate,
+        aim_deg: float,
+        now: float,
+        clearances: Clearances | None = None,
+        turn_deg: float | None = None,
     ) -> bool:
         """Whether turning on the spot (about the axle) from the pose's heading to
-        ``aim_deg`` is an admissible path on the costmap, keeping ``clearances`` (default:
-        the costmap's). The body alone counts, without the zone kept free ahead for
-        driving: a turn on the spot does not drive into anything, and the collision verdict
-        still gates it."""
-        error = math.radians(wrap_deg(aim_deg - pose.heading_deg))
+        ``aim_deg`` the shorter way (or by ``turn_deg``, signed) is an admissible path on
+        the costmap, keeping ``clearances`` (default: the costmap's). The body alone counts,
+        without the zone kept free ahead for driving: a turn on the spot does not drive
+        into anything, and the collision verdict still gates it."""
+        if turn_deg is None:
+            turn_deg = wrap_deg(aim_deg - pose.heading_deg)
+        error = math.radians(turn_deg)
         start = (pose.x_mm, pose.y_mm, math.radians(pose.heading_deg))
         # At one radian per unit time, the turn is done at time ``error``.
         steps = max(2, math.ceil(math.degrees(abs(error)) / TURN_CHECK_DEG) + 1)
