@@ -169,3 +169,38 @@ def gap_to_walls(module: MotionModule, pose: tuple[float, float, float]) -> floa
     """The least gap between the body at ``pose`` (x, y, heading rad) and a plan wall."""
     x, y, heading = (np.array([[v]]) for v in pose)
     return float(module.costmap.wall_gaps(x, y, heading).min())
+
+
+def first_turn_rates(s_mm: float, d_mm: float, heading_deg: float, to_deg: float) -> list[float]:
+    """The yaw rates of the first control periods of a robot standing ``s_mm`` along the
+    hallway, ``d_mm`` left of its axis, facing ``heading_deg``, told to turn to ``to_deg``
+    (nothing seen around it)."""
+    module = MotionModule(CONFIG, PLAN)
+    x, y = FLOOR.from_hallway(s_mm, d_mm)
+    module.costmap.reset(FLOOR, x, y)
+    pose = estimate_at(2, x, y, heading_deg)
+    turn = MoveInstruction(id=1, action="turn", floor=2, heading_deg=to_deg)
+    controller = module.controller
+    return [controller.step(turn, pose, 3.0 + 0.05 * k, 0.05, 500.0).yaw_rate_dps for k in range(3)]
+
+
+def test_a_half_turn_beside_a_wall_swings_the_front_through_the_hallways_middle() -> None:
+    """Turning round at an office door, the robot turns the way that swings its front (near
+    the axle) through the hallway's middle and its rear (corners half a metre from the
+    axle) along the wall, into the door's recess: swung the other way (the shorter by a
+    degree, or either at exactly 180), a robot turning round at 213's door swept its rear
+    across the hallway into a robot that had come up beside the other wall, and the two
+    stood pressed together for good in the fleet benchmark. On the centre line either way
+    sweeps alike: the shorter."""
+    west = FLOOR.hallway.heading_deg + 180.0
+    east = FLOOR.hallway.heading_deg
+    for room, side in (("213", 1.0), ("212", -1.0)):
+        door = PLAN.find_room(room).door
+        at_door = side * (HALF_WIDTH - 558.0)  # where a robot stands at a door (292 mm)
+        for heading in (west, west - 1.0, west + 1.0):
+            rates = first_turn_rates(door.at_mm, at_door, heading, east)
+            # Left of the axis the front swings right (south) to the middle, and vice versa.
+            assert all(rate * side > 0.0 for rate in rates), (room, heading, rates)
+    # On the centre line: the shorter way, whichever side that is.
+    assert all(rate < 0.0 for rate in first_turn_rates(S_MM, 0.0, west - 1.0, east))
+    assert all(rate > 0.0 for rate in first_turn_rates(S_MM, 0.0, west + 1.0, east))
