@@ -12,7 +12,7 @@ from coffeebot.navigation.control import SpeedProfile, wheel_speeds
 from coffeebot.navigation.lifecycle import DeliveryLifecycle
 from coffeebot.navigation.passing import right_lane_mm
 from coffeebot.navigation.path import route_legs
-from coffeebot.navigation.route import ElevatorRide, IfHeld, Lease, Move, RoutePlanner
+from coffeebot.navigation.route import ElevatorRide, Lease, Move, RoutePlanner
 
 PLANNER = RoutePlanner.for_robot(PLAN, CONFIG)
 FLEET_ROBOT = RoutePlanner.for_robot(PLAN, CONFIG, PLAN.floor(2).parking[1])
@@ -145,8 +145,7 @@ def test_a_fleet_robot_out_of_the_car_waits_for_the_loading_spot_at_the_holding_
     leaving the room for the car, each holding what the other waits for. So it takes the
     holding point before the car (not the loading spot: that held the spot for the whole
     wait for the car and the ride, a minute or more a cup), waits there for the spot, and
-    gives the point back once it has the spot (and the crossing), so the next robot rides
-    down meanwhile."""
+    gives the point back once in the room, so the next robot rides down only then."""
     floor = PLAN.floor(2)
     elevator = floor.elevator
     assert elevator is not None
@@ -165,21 +164,13 @@ def test_a_fleet_robot_out_of_the_car_waits_for_the_loading_spot_at_the_holding_
         (out,) = [m.instruction for m in ride.exit if isinstance(m, Move)]
         assert out.x_mm is not None and out.y_mm is not None
         assert floor.to_hallway(out.x_mm, out.y_mm) == (elevator.at_mm, 0.0)
-        # The spot asked for as the doors open, without waiting for it there; the crossing
-        # in front of the car held to drive out; the car given back once out of it.
-        assert ride.exit[:2] == [
-            Lease("loading_spot", True, wait=False),
-            Lease("crossing", True),
-        ]
-        back, choice = steps[at + 1 :]
-        assert back == Lease("elevator", False)
-        assert isinstance(choice, IfHeld) and choice.place == "loading_spot"
-        # Without the spot by then: to the point, the crossing given back there.
-        hold, crossing_back, turn, ask = choice.waiting[:4]
+        # The car given back once out of it; the crossing in front of it at the point.
+        assert ride.exit[0] == Lease("crossing", True)
+        back, hold, crossing_back, turn, ask = steps[at + 1 : at + 6]
         assert isinstance(hold, Move) and hold.instruction.action == "drive_to"
+        assert (back, ask) == (Lease("elevator", False), Lease("loading_spot", True))
         assert crossing_back == Lease("crossing", False)
         assert isinstance(turn, Move) and turn.instruction.heading_deg == 180.0
-        assert ask == Lease("loading_spot", True)
         # Towards the dead end on the hallway's axis, the whole body clear of both doorways,
         # and a body's length before the end wall to turn round in (at 1.2 m from the car,
         # 400 mm from the wall, the turn back was held by the wall ahead for good; in a
@@ -191,26 +182,12 @@ def test_a_fleet_robot_out_of_the_car_waits_for_the_loading_spot_at_the_holding_
         for doorway in (door, elevator):
             assert s - half >= doorway.at_mm + doorway.width_mm / 2 + 100.0
         assert s + half + CONFIG.geometry.length_mm <= floor.hallway.length_mm
-        # Either way the point is given back once the spot and the crossing are the
-        # robot's, before it drives in; the crossing once it is in the room.
-        for way in (choice.waiting, choice.held):
-            leases = [s for s in way if isinstance(s, Lease)]
-            spot = leases.index(Lease("loading_spot", True))
-            assert leases[spot + 1 : spot + 3] == [
-                Lease("crossing", True),
-                Lease("holding_point", False),
-            ]
-            into = next(
-                i
-                for i, s in enumerate(way)
-                if isinstance(s, Move) and s.instruction.detail == "into Tea room"
-            )
-            assert way.index(Lease("holding_point", False)) < into
-            assert way[into + 1] == Lease("crossing", False)
-        # With the spot: straight in from where it came out of the car, no holding point.
-        moves = [s.instruction for s in choice.held if isinstance(s, Move)]
-        assert "to the holding point" not in [m.detail for m in moves]
-        assert moves[0].action == "turn" and moves[1].detail == "into Tea room"
+        into = next(
+            i
+            for i, s in enumerate(steps)
+            if isinstance(s, Move) and s.instruction.detail == ("into Tea room")
+        )
+        assert Lease("holding_point", False) in steps[into + 1 : into + 3]
 
 
 def test_without_room_for_a_holding_point_the_spot_is_taken_before_the_car() -> None:
@@ -487,49 +464,26 @@ def test_a_fleet_robot_changes_lanes_for_the_elevator_only_with_way_enough() -> 
 
 
 INNERMOST = {"crossing", "landing"}
-GRANTED = "granted"
 
 
-def _ways(route_steps: list, held: set[str]) -> list[tuple[list, set[str]]]:
-    """Every way through a route begun holding ``held``: its steps in order, rides' moves
-    included, one way per choice at each :class:`IfHeld` (the one taken holding its place
-    begins with a ``GRANTED`` mark for it)."""
-    ways: list[tuple[list, set[str]]] = [([], set(held))]
-    for step in route_steps:
-        if isinstance(step, ElevatorRide):
-            ways = [([*flat, *step.enter, *step.exit], h) for flat, h in ways]
-        elif isinstance(step, IfHeld):
-            ways = [
-                ([*flat, *([(GRANTED, step.place)] if took else []), *rest], h)
-                for flat, h in ways
-                for took, branch in ((True, step.held), (False, step.waiting))
-                for rest, _ in _ways(branch, set())
-            ]
-        else:
-            ways = [([*flat, step], h) for flat, h in ways]
-    return ways
-
-
-def _crossing_holds(route_steps: list, start_held: set[str]) -> list[tuple[Move, set[str]]]:
-    """Each move of every way through a route begun holding ``start_held``, with the places
-    held while it is made, checking the rule of the spaces in front of the car's door (the
-    crossing, the landing) on the way: each is asked for last (never another place waited
-    for while one is held) and given back by the route's end."""
+def _crossing_holds(route_steps: list, held: set[str]) -> list[tuple[Move, set[str]]]:
+    """Each move of a route begun holding ``held``, with the places held while it is made
+    (rides' moves included), checking the rule of the spaces in front of the car's door
+    (the crossing, the landing) on the way: each is asked for last (never another place
+    while one is held) and given back by the route's end."""
     made: list[tuple[Move, set[str]]] = []
-    for flat, held in _ways(route_steps, start_held):
-        for step in flat:
-            if isinstance(step, tuple):  # (GRANTED, place): asked for before, now held
-                held.add(step[1])
-            elif isinstance(step, Lease):
-                if not step.wait:
-                    continue  # asked for, not waited for: an IfHeld looks at the answer
-                if step.want and step.place not in INNERMOST and step.place not in held:
-                    inner = held & INNERMOST
-                    assert not inner, f"waits for the {step.place} holding the {inner}"
-                (held.add if step.want else held.discard)(step.place)
-            else:
-                made.append((step, set(held)))
-        assert not held & INNERMOST, f"the {held & INNERMOST} still held at the route's end"
+    flat: list = []
+    for step in route_steps:
+        flat += [*step.enter, *step.exit] if isinstance(step, ElevatorRide) else [step]
+    for step in flat:
+        if isinstance(step, Lease):
+            if step.want and step.place not in INNERMOST:
+                inner = held & INNERMOST
+                assert not inner, f"asks for the {step.place} holding the {inner}"
+            (held.add if step.want else held.discard)(step.place)
+        else:
+            made.append((step, set(held)))
+    assert not held & INNERMOST, f"the {held & INNERMOST} still held at the route's end"
     return made
 
 

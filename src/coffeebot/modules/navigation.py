@@ -62,7 +62,6 @@ from coffeebot.navigation.lifecycle import MOVING, DeliveryLifecycle
 from coffeebot.navigation.path import nearest, route_legs
 from coffeebot.navigation.route import (
     ElevatorRide,
-    IfHeld,
     Lease,
     Move,
     Place,
@@ -341,35 +340,23 @@ class NavigationModule(Module):
                 await self._ride(ctx, step)
             elif isinstance(step, Lease):
                 await self._lease(ctx, step)
-            elif isinstance(step, IfHeld):
-                held = self._held(ctx, step.place)
-                if held:
-                    self._holding.add(step.place)
-                await self._drive(ctx, step.held if held else step.waiting)
             else:
                 await self._move(ctx, step, leg_end_s)
 
     # --- shared places (a fleet's) ---------------------------------------------------------
 
-    @staticmethod
-    def _held(ctx: ModuleContext, place: SharedPlace) -> bool:
-        state = ctx.board.latest(LEASE_STATE)
-        return state is not None and state.msg.holds(place)
-
     async def _lease(self, ctx: ModuleContext, lease: Lease) -> None:
-        """Ask for a shared place and wait until it is this robot's (unless the lease says
-        not to wait), or give it back."""
+        """Ask for a shared place and wait until it is this robot's, or give it back."""
         ctx.board.publish(LEASE_NEED, LeaseNeed(place=lease.place, want=lease.want))
         if not lease.want:
             self._asked.discard(lease.place)
             self._holding.discard(lease.place)
             return
         self._asked.add(lease.place)
-        if not lease.wait:
-            return
 
         def held() -> bool:
-            return self._held(ctx, lease.place)
+            state = ctx.board.latest(LEASE_STATE)
+            return state is not None and state.msg.holds(lease.place)
 
         if not held():
             what = lease.place.replace("_", " ")

@@ -2,9 +2,8 @@
 
 Motion follows instructions, not lines; this is for people (the live map draws it, the
 customer's arrival estimate measures it). A lane-following move ends at its target on its
-lane, a drive ends at its point, turns and leases add nothing, a choice of ways adds the
-longer (the robot may have to take it), and an elevator ride starts a new leg on the floor
-it arrives at.
+lane, a drive ends at its point, turns and leases add nothing, and an elevator ride starts a
+new leg on the floor it arrives at.
 """
 
 from __future__ import annotations
@@ -16,7 +15,7 @@ from typing import TypeVar
 
 from coffeebot.floorplan import FloorPlan
 from coffeebot.messages import MoveInstruction, RouteLeg
-from coffeebot.navigation.route import ElevatorRide, IfHeld, Move, Route, Step
+from coffeebot.navigation.route import ElevatorRide, Lease, Move, Route
 
 
 def polyline_length_mm(points: Sequence[tuple[float, float]]) -> float:
@@ -40,22 +39,22 @@ def route_legs(
     """The route's points from ``start`` on ``floor``, one leg per floor in order."""
     legs: list[tuple[int, list[tuple[float, float]]]] = [(floor, [start])]
 
-    def add(steps: Sequence[Step]) -> None:
-        for step in steps:
-            if isinstance(step, ElevatorRide):
-                add(step.enter)
-                # The car rides straight up or down: the next floor's leg starts where it
-                # stood.
-                legs.append((step.to_floor, [legs[-1][1][-1]]))
-                add(step.exit)
-            elif isinstance(step, IfHeld):
-                add(step.waiting)  # the longer way, as the robot may have to take it
-            elif isinstance(step, Move):
-                point = _point(plan, step.instruction)
-                if point is not None:
-                    legs[-1][1].append(point)
+    def add(steps: Sequence[Move | Lease]) -> None:
+        for move in steps:
+            if isinstance(move, Lease):
+                continue
+            point = _point(plan, move.instruction)
+            if point is not None:
+                legs[-1][1].append(point)
 
-    add(route.steps)
+    for step in route.steps:
+        if isinstance(step, ElevatorRide):
+            add(step.enter)
+            # The car rides straight up or down: the next floor's leg starts where it stood.
+            legs.append((step.to_floor, [legs[-1][1][-1]]))
+            add(step.exit)
+        elif isinstance(step, Move):
+            add([step])
     return [RouteLeg(floor=level, points=points) for level, points in legs]
 
 

@@ -35,9 +35,7 @@ A robot riding to a base room near the car on the other floor takes the holding 
 before the elevator, a place out of the car beside the doorways towards the hallway's nearer
 end, and waits there for the loading spot: in front of the car's door it would stand where
 the robot leaving the room with a cup has to pass, each holding what the other waits for.
-It gives the point back once it has the spot; and it asks for the spot as the car's doors
-open, so that out of the car it drives straight in when the spot is already its
-(:class:`IfHeld`). Where no holding point fits it takes the loading
+It gives the point back once in the room. Where no holding point fits it takes the loading
 spot itself before the elevator (which holds the spot through the wait for the car and the
 ride).
 """
@@ -68,13 +66,10 @@ class Move:
 
 @dataclass(frozen=True)
 class Lease:
-    """Hold ``place`` alone from here (``want``), or give it back: only in a fleet. Asked
-    for without ``wait``, the robot goes on at once, in the place's queue; an
-    :class:`IfHeld` later looks at the answer."""
+    """Hold ``place`` alone from here (``want``), or give it back: only in a fleet."""
 
     place: SharedPlace
     want: bool
-    wait: bool = True
 
 
 @dataclass(frozen=True)
@@ -95,18 +90,7 @@ class ElevatorRide:
     exit: list[Move | Lease]
 
 
-@dataclass(frozen=True)
-class IfHeld:
-    """Two ways on, chosen where the robot comes to this step: ``held`` if ``place`` (asked
-    for before without waiting) is its by then, else ``waiting``, which waits for it. Both
-    end holding the same places."""
-
-    place: SharedPlace
-    held: list[Step]
-    waiting: list[Step]
-
-
-Step = Move | ElevatorRide | Lease | IfHeld
+Step = Move | ElevatorRide | Lease
 
 
 @dataclass(frozen=True)
@@ -366,22 +350,15 @@ class RoutePlanner:
             there = self.plan.car_door(car, goal.floor)
             floor, s = self._view_of(goal.floor, there), there.at_mm
             steps += self._out_of_car(floor, goal, there)
-            if self._asks_spot_out_of_car(goal, floor, there):
-                # Straight in if the spot is the robot's by now; else to the holding point,
-                # to wait for it there. Through the point when the spot was free it took
-                # 20 s longer and held the point and the spot that long.
-                clear, at_point = self._clear_of_elevator(floor, s, goal)
-                straight_in = self._along(floor, s, goal, park, held=True)
-                straight_in += _front_of_car_given_back([*steps, *straight_in])
-                from_point = self._along(floor, at_point, goal, park, held=True)
-                steps.append(IfHeld("loading_spot", straight_in, [*clear, *from_point]))
-                return Route(steps)
             if self.parking is not None:
                 clear, s = self._clear_of_elevator(floor, s, goal)
                 steps += clear
+        # Waiting at the holding point, the robot is out of every other's way until it
+        # turns in: the next may ride down to it once it is in the room.
+        held = Lease("holding_point", True) in steps
         between, floor, s = self._between_hallways(floor, s, goal.door)
         steps += between
-        steps.extend(self._along(floor, s, goal, park))
+        steps.extend(self._along(floor, s, goal, park, held=held))
         # Its goal lies within the space in front of the car.
         steps += _front_of_car_given_back(steps)
         return Route(steps)
@@ -553,18 +530,6 @@ class RoutePlanner:
             return None
         return point
 
-    def _asks_spot_out_of_car(self, goal: Place, there: Floor, door_there: Door) -> bool:
-        """Whether a fleet's robot riding to ``goal`` comes out of the car at
-        ``door_there`` across from its base room's door, with a holding point to wait at:
-        it asks for the loading spot as the doors open, and drives out onto the hallway's
-        axis, where it turns in straight away or towards the point."""
-        return (
-            self.parking is not None
-            and goal.inside
-            and self._across_from(there, goal.door, door_there.at_mm)
-            and self._holding_point(goal) is not None
-        )
-
     def _out_of_crossing(
         self, floor: Floor, s: float, goal: Place, lane: float, direction: float
     ) -> tuple[list[Step], float]:
@@ -700,17 +665,12 @@ class RoutePlanner:
         out_lane = self.lane_mm(there, direction)
         straight_across = goal.inside and self._across_from(there, goal.door, door_there.at_mm)
         out_to = out_lane if straight_across else self.out_to_mm(door_there, out_lane)
-        to_point = self._asks_spot_out_of_car(goal, there, door_there)
-        if to_point:
+        if straight_across and self.parking is not None and self._holding_point(goal) is not None:
             # Bound for the holding point, on the hallway's axis: its turn towards the point
             # has room there. In the lane in front of the room's door, 250 mm from its jamb,
             # the turn was stopped by the jamb and a robot standing in the doorway for good.
             out_to = 0.0
-        # Bound for the base room across from the car: the spot asked for as the doors
-        # open, so that out of the car the robot knows whether to drive straight in.
-        spot = [Lease("loading_spot", True, wait=False)] if to_point else []
         out: list[Move | Lease] = [
-            *spot,
             *self._in_front_of_car(there, True),
             self._drive_to(
                 there,
@@ -765,7 +725,7 @@ class RoutePlanner:
         self, floor: Floor, s: float, goal: Place, park: bool = True, held: bool = False
     ) -> list[Step]:
         """Along the hallway from ``s`` to the goal's door, then into it if it is parked in
-        (giving the holding point back once it has the loading spot, if it ``held`` it)."""
+        (giving the holding point back once in, if it ``held`` it)."""
         door = goal.door
         direction = 1.0 if door.at_mm >= s else -1.0
         steps: list[Step] = []
@@ -792,11 +752,6 @@ class RoutePlanner:
             steps.append(Lease("loading_spot", True))
             if self._crossing(floor):
                 steps.append(Lease("crossing", True))
-            if held:
-                # With the spot (and the crossing) it no longer needs the point: the next
-                # robot rides down to it meanwhile, and comes out of the car only once this
-                # one is in the room and has given the crossing back.
-                steps.append(Lease("holding_point", False))
         if not (goal.inside and self._across_from(floor, door, s)):
             steps.append(
                 self._lane(
@@ -812,6 +767,8 @@ class RoutePlanner:
             steps.append(self.to_loading_spot(floor, door, f"into {door.room}"))
             if spot is not None and self._crossing(floor):
                 steps.append(Lease("crossing", False))
+            if held:
+                steps.append(Lease("holding_point", False))
             if spot is None:
                 steps.append(self._turn(floor, self.facing_deg(floor, door) + 180.0, "parked"))
             elif park:
@@ -890,12 +847,7 @@ def _holds(steps: list[Step], place: SharedPlace) -> bool:
     """Whether a robot that went through ``steps`` holds ``place`` at their end."""
     flat: list[Step] = []
     for step in steps:
-        if isinstance(step, ElevatorRide):
-            flat += [*step.enter, *step.exit]
-        elif isinstance(step, IfHeld):
-            flat += step.waiting  # either way ends holding the same places
-        else:
-            flat.append(step)
+        flat += [*step.enter, *step.exit] if isinstance(step, ElevatorRide) else [step]
     for step in reversed(flat):
         if isinstance(step, Lease) and step.place == place:
             return step.want
