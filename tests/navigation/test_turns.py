@@ -33,11 +33,13 @@ KEEP_RIGHT_D = -HALF_WIDTH + CONFIG.motion.wall_distance_mm + CONFIG.geometry.wi
 EAST = FLOOR.hallway.heading_deg
 
 
-def module_at(d_mm: float, readings: dict[int, float] | None = None) -> MotionModule:
-    """The motion module of a robot standing at ``S_MM``, ``d_mm`` facing east, whose
+def module_at(
+    d_mm: float, readings: dict[int, float] | None = None, s_mm: float = S_MM
+) -> MotionModule:
+    """The motion module of a robot standing at ``s_mm``, ``d_mm`` facing east, whose
     sensors have read ``readings`` (sensor id: mm; nothing in range on the others)."""
     module = MotionModule(CONFIG, PLAN)
-    x, y = FLOOR.from_hallway(S_MM, d_mm)
+    x, y = FLOOR.from_hallway(s_mm, d_mm)
     module.costmap.reset(FLOOR, x, y)
     seen = readings or {}
     scan = RangeScan(
@@ -55,10 +57,18 @@ def module_at(d_mm: float, readings: dict[int, float] | None = None) -> MotionMo
     return module
 
 
-def turn_to(module: MotionModule, d_mm: float, heading_deg: float, periods: int = 10):
-    """The commands of ``periods`` control periods turning towards ``heading_deg``."""
-    x, y = FLOOR.from_hallway(S_MM, d_mm)
-    pose = estimate_at(2, x, y, EAST)
+def turn_to(
+    module: MotionModule,
+    d_mm: float,
+    heading_deg: float,
+    periods: int = 10,
+    s_mm: float = S_MM,
+    from_deg: float = EAST,
+):
+    """The commands of ``periods`` control periods turning from ``from_deg`` towards
+    ``heading_deg``."""
+    x, y = FLOOR.from_hallway(s_mm, d_mm)
+    pose = estimate_at(2, x, y, from_deg)
     instruction = MoveInstruction(id=1, action="turn", floor=2, heading_deg=heading_deg)
     return [
         module.controller.step(instruction, pose, 1.0 + 0.05 * k, 0.05, 500.0)
@@ -175,13 +185,9 @@ def first_turn_rates(s_mm: float, d_mm: float, heading_deg: float, to_deg: float
     """The yaw rates of the first control periods of a robot standing ``s_mm`` along the
     hallway, ``d_mm`` left of its axis, facing ``heading_deg``, told to turn to ``to_deg``
     (nothing seen around it)."""
-    module = MotionModule(CONFIG, PLAN)
-    x, y = FLOOR.from_hallway(s_mm, d_mm)
-    module.costmap.reset(FLOOR, x, y)
-    pose = estimate_at(2, x, y, heading_deg)
-    turn = MoveInstruction(id=1, action="turn", floor=2, heading_deg=to_deg)
-    controller = module.controller
-    return [controller.step(turn, pose, 3.0 + 0.05 * k, 0.05, 500.0).yaw_rate_dps for k in range(3)]
+    module = module_at(d_mm, s_mm=s_mm)
+    commands = turn_to(module, d_mm, to_deg, periods=3, s_mm=s_mm, from_deg=heading_deg)
+    return [command.yaw_rate_dps for command in commands]
 
 
 def test_a_half_turn_beside_a_wall_swings_the_front_through_the_hallways_middle() -> None:

@@ -238,9 +238,9 @@ class MotionController:
         if self._way is None:
             floor = self.plan.floor(pose.floor).view_near(pose.x_mm, pose.y_mm)
             self._way = self._way_round(floor, pose, error, now)
-        aim, left = wanted, error
-        if self._way * error < 0:  # the long way round: towards a quarter turn ahead
-            aim, left = pose.heading_deg + self._way * 90.0, error + self._way * 360.0
+        left = turn_deg(error, self._way)
+        # The long way round: towards a quarter turn ahead until the rest is the shorter way.
+        aim = wanted if left == error else pose.heading_deg + self._way * 90.0
         return self._spin(ins, pose, aim, now, dt, limit, None, f"turning, {left:.0f} deg")
 
     def _way_round(self, floor: Floor, pose: PoseEstimate, error: float, now: float) -> float:
@@ -260,8 +260,7 @@ class MotionController:
         way = -math.copysign(1.0, d) * math.copysign(1.0, along)
         if way * error > 0:
             return 0.0  # the shorter way is that way
-        turn = error + way * 360.0
-        free = self._turn_is_free(pose, 0.0, now, self._spin_room, turn_deg=turn)
+        free = self._turn_is_free(pose, pose.heading_deg + error, now, self._spin_room, way)
         return way if free else 0.0
 
     def _spin(
@@ -672,16 +671,14 @@ class MotionController:
         aim_deg: float,
         now: float,
         clearances: Clearances | None = None,
-        turn_deg: float | None = None,
+        way: float = 0.0,
     ) -> bool:
         """Whether turning on the spot (about the axle) from the pose's heading to
-        ``aim_deg`` the shorter way (or by ``turn_deg``, signed) is an admissible path on
-        the costmap, keeping ``clearances`` (default: the costmap's). The body alone counts,
-        without the zone kept free ahead for driving: a turn on the spot does not drive
-        into anything, and the collision verdict still gates it."""
-        if turn_deg is None:
-            turn_deg = wrap_deg(aim_deg - pose.heading_deg)
-        error = math.radians(turn_deg)
+        ``aim_deg`` the shorter way (or ``way`` round, :func:`turn_deg`) is an admissible
+        path on the costmap, keeping ``clearances`` (default: the costmap's). The body alone
+        counts, without the zone kept free ahead for driving: a turn on the spot does not
+        drive into anything, and the collision verdict still gates it."""
+        error = math.radians(turn_deg(wrap_deg(aim_deg - pose.heading_deg), way))
         start = (pose.x_mm, pose.y_mm, math.radians(pose.heading_deg))
         # At one radian per unit time, the turn is done at time ``error``.
         steps = max(2, math.ceil(math.degrees(abs(error)) / TURN_CHECK_DEG) + 1)
@@ -697,6 +694,12 @@ class MotionController:
             xs, ys, headings, start, now, self.costmap.body, clearances
         )
         return bool(admissible[0])
+
+
+def turn_deg(error_deg: float, way: float) -> float:
+    """The signed turn to a heading ``error_deg`` away (the shorter way, as
+    :func:`wrap_deg` folds it) made ``way`` round: +1 left, -1 right, 0 the shorter."""
+    return error_deg + way * 360.0 if way * error_deg < 0 else error_deg
 
 
 def _waiting_state(sighting: Sighting, avoid: bool, target_mm_s: float) -> MotionState:
