@@ -48,10 +48,13 @@ STANDING_D_MM = 361.0
 (445 mm off the axis) stood, squared up, in the fleet's simulation."""
 
 
-def meet(traffic: bool, max_time_s: float, b_stands: bool = False) -> Meeting:
+def meet(
+    traffic: bool, max_time_s: float, b_stands: bool = False, a_off_mm: float = 0.0
+) -> Meeting:
     """Robot a from s=13 m going +s, robot b from s=21 m going -s, each in its lane, each
     with its own motion module and collision monitor fed ground truth (as ``drive`` does).
-    ``b_stands``: b stands still on its side ``STANDING_D_MM`` off the axis instead."""
+    ``b_stands``: b stands still on its side ``STANDING_D_MM`` off the axis instead.
+    ``a_off_mm``: a's estimate that far off its truth towards the hallway's middle."""
     h = FLOOR.hallway.heading_deg
     lane_a, lane_b = PLANNER.lane_mm(FLOOR, 1.0), PLANNER.lane_mm(FLOOR, -1.0)
     xa, ya = FLOOR.from_hallway(13000, lane_a)
@@ -95,6 +98,10 @@ def meet(traffic: bool, max_time_s: float, b_stands: bool = False) -> Meeting:
             readings = [as_range_reading(k, r) for k, r in enumerate(robot.scan(SETUP))]
             scan = RangeScan(cycle_start_s=world.t_s, cycle_time_s=DT, readings=readings)
             pose = true_pose(robot)
+            if i == 0 and a_off_mm:
+                s, d = FLOOR.to_hallway(pose.x_mm, pose.y_mm)
+                x, y = FLOOR.from_hallway(s, d - math.copysign(a_off_mm, d))
+                pose = pose.model_copy(update={"x_mm": x, "y_mm": y})
             module, ins = modules[i], instructions[i]
             module.costmap.update(
                 scan,
@@ -138,6 +145,15 @@ def meet(traffic: bool, max_time_s: float, b_stands: bool = False) -> Meeting:
 
 def test_with_traffic_both_pass_in_their_passing_lanes() -> None:
     meeting = meet(traffic=True, max_time_s=60.0)
+    assert meeting.done == [True, True]
+    assert meeting.contacts == 0
+
+
+def test_they_pass_with_one_estimate_50_mm_towards_the_middle() -> None:
+    """a, 50 mm nearer its wall than it believes, reads that wall at a glancing angle
+    where the plan puts no wall: the cells it marks there are not an obstacle in its passing
+    lane (they were: its go-round, its rear's swing held by them, ended against the wall)."""
+    meeting = meet(traffic=True, max_time_s=60.0, a_off_mm=50.0)
     assert meeting.done == [True, True]
     assert meeting.contacts == 0
 

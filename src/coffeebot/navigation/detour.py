@@ -194,6 +194,20 @@ class DetourPlanner:
         rear = s - direction * (self.footprint.length_mm / 2 + self.cfg.obstacle_clearance_mm)
         return (rear - detour.extent_s_mm) * direction > 0
 
+    def hallway_cells(self, floor: Floor, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The costmap's obstacle cells as hallway positions (n, 2: s, d), with since when
+        each has been occupied and its margin, less those within ``wall_margin_mm`` and a
+        cell of the side walls: those are the wall itself, read at a glancing angle from a
+        pose a few centimetres off and left unexplained (a robot in its passing lane, its
+        estimate 50 mm towards the middle, took such cells 84 mm from the wall for an
+        obstacle in its lane, and the go-round, its rear's swing held by them, ended pressed
+        against the wall)."""
+        xs, ys, since, margins = self.costmap.obstacles(now)
+        sd = np.array([floor.to_hallway(x, y) for x, y in zip(xs, ys, strict=True)]).reshape(-1, 2)
+        wall_band = self.cfg.wall_margin_mm + self.cfg.costmap_resolution_mm
+        off_walls = np.abs(sd[:, 1]) < floor.hallway.width_mm / 2 - wall_band
+        return sd[off_walls], since[off_walls], margins[off_walls]
+
     def free_lane(
         self,
         floor: Floor,
@@ -206,11 +220,10 @@ class DetourPlanner:
         """The lane nearest to ``lane`` whose corridor past the obstacle is free, if any;
         ``settled``: of the cells that have stood still for ``static_confirm_s``."""
         cfg = self.cfg
-        xs, ys, since, margins = self.costmap.obstacles(now)
+        sd, since, margins = self.hallway_cells(floor, now)
         if settled:
             keep = since <= now - cfg.static_confirm_s
-            xs, ys, margins = xs[keep], ys[keep], margins[keep]
-        sd = np.array([floor.to_hallway(x, y) for x, y in zip(xs, ys, strict=True)]).reshape(-1, 2)
+            sd, margins = sd[keep], margins[keep]
         along = (sd[:, 0] - obstacle_s) * direction
         beside = (along > -self.footprint.length_mm - margins) & (along < cfg.lookahead_mm)
         near, near_margins = sd[beside, 1], margins[beside]
@@ -236,10 +249,9 @@ class DetourPlanner:
         """The nearest obstacle cell in the lane ahead within ``horizon_mm`` (default: the
         lookahead; a narrow return's nearer by its margin, and in the lane when what it may
         carry reaches into it) and whether it has stood still."""
-        xs, ys, since, margins = self.costmap.obstacles(now)
-        if xs.size == 0:
+        sd, since, margins = self.hallway_cells(floor, now)
+        if since.size == 0:
             return None
-        sd = np.array([floor.to_hallway(x, y) for x, y in zip(xs, ys, strict=True)])
         along = (sd[:, 0] - s) * direction
         reach = along - margins
         half = self.footprint.width_mm / 2 + self.cfg.obstacle_clearance_mm
