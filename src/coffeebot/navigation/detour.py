@@ -194,7 +194,7 @@ class DetourPlanner:
         rear = s - direction * (self.footprint.length_mm / 2 + self.cfg.obstacle_clearance_mm)
         return (rear - detour.extent_s_mm) * direction > 0
 
-    def hallway_cells(self, floor: Floor, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _hallway_cells(self, floor: Floor, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The costmap's obstacle cells as hallway positions (n, 2: s, d), with since when
         each has been occupied and its margin, less those within ``wall_margin_mm`` and a
         cell of the side walls: those are the wall itself, read at a glancing angle from a
@@ -220,7 +220,7 @@ class DetourPlanner:
         """The lane nearest to ``lane`` whose corridor past the obstacle is free, if any;
         ``settled``: of the cells that have stood still for ``static_confirm_s``."""
         cfg = self.cfg
-        sd, since, margins = self.hallway_cells(floor, now)
+        sd, since, margins = self._hallway_cells(floor, now)
         if settled:
             keep = since <= now - cfg.static_confirm_s
             sd, margins = sd[keep], margins[keep]
@@ -249,7 +249,7 @@ class DetourPlanner:
         """The nearest obstacle cell in the lane ahead within ``horizon_mm`` (default: the
         lookahead; a narrow return's nearer by its margin, and in the lane when what it may
         carry reaches into it) and whether it has stood still."""
-        sd, since, margins = self.hallway_cells(floor, now)
+        sd, since, margins = self._hallway_cells(floor, now)
         if since.size == 0:
             return None
         along = (sd[:, 0] - s) * direction
