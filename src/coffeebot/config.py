@@ -591,12 +591,13 @@ class ParticleFilterConfig(Section):
     min_signal_rate_mcps: float = Field(
         0.0, ge=0, description="readings reporting a weaker signal than this are skipped"
     )
-    elevator_blind_mm: float = Field(
-        2000.0,
+    elevator_margin_mm: float = Field(
+        300.0,
         ge=0,
-        description="scans are not weighed while the estimate is this close to an elevator "
-        "door: the car behind it is not in the floor plan, and its walls seen through the "
-        "open door pulled the cloud sideways into the jamb; odometry and UWB carry it there",
+        description="readings whose cone may have crossed an elevator's doorway, widened by "
+        "this each side, are not weighed: the car behind the open doors is not in the plan, "
+        "and its walls seen through them pulled the cloud sideways into the jamb; with the "
+        "estimate in the doorway no reading is (perception/elevator_mask.py)",
     )
     # Other sources as likelihoods.
     uwb_outlier_probability: float = Field(

@@ -32,6 +32,7 @@ import numpy as np
 from coffeebot.config import ParticleFilterConfig, StateConfig, TofConfig
 from coffeebot.floorplan import Floor, FloorPlan
 from coffeebot.messages import RangeScan
+from coffeebot.perception.elevator_mask import ElevatorMask
 from coffeebot.perception.fusion import CHI2_1DOF_999, OdometryStep, ParticleSummary
 from coffeebot.perception.likelihood_field import LikelihoodField, field_for
 from coffeebot.perception.range_model import RangeModel
@@ -47,6 +48,8 @@ MODE_BIN_RAD = math.radians(45.0)
 """Coarse bins that pick the heaviest mode of the cloud for the estimate."""
 MODE_RADIUS_MM = 1500.0
 MODE_RADIUS_RAD = math.radians(60.0)
+MAX_HEADING_MARGIN_DEG = 30.0
+"""The elevator mask widens each cone by three heading sigmas, up to this."""
 FIELD_MARGIN_MM = 1000.0
 """The likelihood field reaches this far beyond the plan's walls; beyond, nothing is near."""
 _RAD_TO_DEG = np.array([1.0, 1.0, math.degrees(1.0)])
@@ -77,6 +80,9 @@ class ParticlePoseFusion:
         self.state_cfg = cfg
         self.cfg: ParticleFilterConfig = cfg.particles
         self.model = RangeModel(tof.sensors, tof.max_range_mm, self.cfg)
+        self.elevator_mask = ElevatorMask(
+            tof.sensors, self.cfg.elevator_margin_mm, float(tof.max_range_mm)
+        )
         self.clearance_mm = clearance_mm
         self.rng, self._draw_rng = (
             np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(2)
@@ -303,8 +309,16 @@ class ParticlePoseFusion:
             self._scan_travel_mm >= cfg.update_min_mm
             or math.degrees(self._scan_turn_rad) >= cfg.update_min_deg
         )
-        if not (moved or self._scan_due) or self._at_elevator():
+        if not (moved or self._scan_due):
             return False
+        x, y, heading = self.pose()
+        if self.elevator_mask.in_doorway(self.floor, x, y):
+            return False
+        heading_margin = min(MAX_HEADING_MARGIN_DEG, 3.0 * self.sigmas()[2])
+        masked = self.elevator_mask.masked(self.floor, scan, (x, y, heading), heading_margin)
+        if masked:
+            kept = [r for r in scan.readings if r.sensor not in masked]
+            scan = scan.model_copy(update={"readings": kept})
         self._apply_motion()
         result = self.model.evaluate(self.field, scan, self.particles)
         if result.readings == 0:
@@ -313,16 +327,6 @@ class ParticlePoseFusion:
         self._scan_due = False
         self._weigh(result.log_likelihood, ("ranges", self._fit(result.log_fit)))
         return True
-
-    def _at_elevator(self) -> bool:
-        """Near an elevator door, where the plan does not know what the sensors see."""
-        if self.cfg.elevator_blind_mm <= 0:
-            return False
-        px, py, _ = self.pose()
-        return any(
-            math.dist(self.floor.behind_door(door, 0.0), (px, py)) < self.cfg.elevator_blind_mm
-            for door in self.floor.elevators
-        )
 
     def update_position(self, x_mm: float, y_mm: float, sigma_mm: float) -> bool:
         if not (math.isfinite(x_mm) and math.isfinite(y_mm) and sigma_mm > 0):

@@ -1,0 +1,121 @@
+"""The readings that may have looked into an elevator car: the particle filter leaves them out.
+
+The plan has each elevator's closed leaf, not the car behind it: with the doors open, a cone
+through the doorway reads the car's back wall or a robot riding in it, and weighed against
+the leaf those readings slid the cloud sideways into the jamb (docs/localization.md). Every
+scan used to be dropped within 2 m of the door, which left a robot leaving the tea room
+opposite the elevator on odometry and UWB alone for the turn into the hallway and the first
+metres after it: its heading a few degrees off from the turn, its estimate drifted 60-110 mm
+across the hallway where lane keeping put it, in the fleet, 70 mm from the wall.
+
+So only what may have looked through a doorway is left out: a reading whose cone, from the
+estimate and widened by the estimate's heading uncertainty, crosses the door's mouth (the
+hallway's wall line between the jambs, widened by ``margin_mm`` each side for the
+position's), before the reading's range (plus ``margin_mm``) or, when nothing was ranged,
+within ``reach_mm``. Inside the car, or with the body centre past the wall line in the
+doorway, nothing the sensors see is on the plan, and the whole scan is left out.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from coffeebot.config import TofSensorConfig
+from coffeebot.floorplan import Floor
+from coffeebot.messages import RangeScan, ReadingStatus
+from coffeebot.perception.geometry import sensor_origins, spread_rad
+from coffeebot.perception.walls import segment_ranges
+
+CONE_RAYS = 9
+"""Rays across each widened cone: at 1.5 m they lie at most ~100 mm apart, a tenth of a
+doorway."""
+
+
+class ElevatorMask:
+    """The readings of a scan that may have looked into an elevator car, per floor."""
+
+    def __init__(
+        self, sensors: Sequence[TofSensorConfig], margin_mm: float, reach_mm: float
+    ) -> None:
+        self.sensors = {s.id: s for s in sensors}
+        self.margin_mm = margin_mm
+        self.reach_mm = reach_mm
+        self._mouths: dict[int, np.ndarray] = {}
+
+    def mouths(self, floor: Floor) -> np.ndarray:
+        """Each elevator door's mouth on ``floor`` (k, 4: x0, y0, x1, y1), widened along its
+        wall by ``margin_mm`` each side."""
+        if floor.level not in self._mouths:
+            rows = []
+            for door in floor.elevators:
+                hallway = floor.hallway_of(door)
+                wall_d = (1.0 if door.side == "left" else -1.0) * hallway.width_mm / 2
+                lo, hi = door.span
+                rows.append(
+                    (
+                        *hallway.from_local(lo - self.margin_mm, wall_d),
+                        *hallway.from_local(hi + self.margin_mm, wall_d),
+                    )
+                )
+            self._mouths[floor.level] = np.array(rows, dtype=float).reshape(-1, 4)
+        return self._mouths[floor.level]
+
+    def in_doorway(self, floor: Floor, x_mm: float, y_mm: float) -> bool:
+        """Whether the body centre is past the wall line within an elevator's doorway (or
+        its margin): in the car, or half in it."""
+        for door in floor.elevators:
+            hallway = floor.hallway_of(door)
+            s, d = hallway.to_local(x_mm, y_mm)
+            lo, hi = door.span
+            outward = d if door.side == "left" else -d
+            if lo - self.margin_mm <= s <= hi + self.margin_mm and outward > hallway.width_mm / 2:
+                return True
+        return False
+
+    def _near(self, mouths: np.ndarray, x_mm: float, y_mm: float) -> bool:
+        """Whether any mouth lies within the longest reach of the body centre (a cheap
+        test first: most scans are taken nowhere near an elevator)."""
+        if len(mouths) == 0:
+            return False
+        mid_x, mid_y = (mouths[:, 0] + mouths[:, 2]) / 2, (mouths[:, 1] + mouths[:, 3]) / 2
+        half = np.hypot(mouths[:, 2] - mouths[:, 0], mouths[:, 3] - mouths[:, 1]) / 2
+        body = max(math.hypot(s.x_mm, s.y_mm) for s in self.sensors.values())
+        longest = self.reach_mm + self.margin_mm + body
+        return bool((np.hypot(mid_x - x_mm, mid_y - y_mm) - half <= longest).any())
+
+    def masked(
+        self,
+        floor: Floor,
+        scan: RangeScan,
+        pose: tuple[float, float, float],
+        heading_margin_deg: float,
+    ) -> frozenset[int]:
+        """The sensors whose reading in ``scan`` may have looked through a doorway, from
+        ``pose`` (x mm, y mm, heading deg) with its heading ``heading_margin_deg`` uncertain."""
+        mouths = self.mouths(floor)
+        if not self._near(mouths, pose[0], pose[1]):
+            return frozenset()
+        ids, mounts, reach = [], [], []
+        for reading in scan.readings:
+            mount = self.sensors.get(reading.sensor)
+            if mount is None:
+                continue
+            if reading.status is ReadingStatus.VALID and reading.distance_mm is not None:
+                reach.append(reading.distance_mm + self.margin_mm)
+            else:
+                reach.append(self.reach_mm)
+            ids.append(reading.sensor)
+            mounts.append(mount)
+        if not ids or len(mouths) == 0:
+            return frozenset()
+        placed = sensor_origins(*pose, mounts)
+        origins = np.array([(x, y) for x, y, _ in placed])
+        spread = [spread_rad(mount.fov_deg / 2 + heading_margin_deg, CONE_RAYS) for mount in mounts]
+        angles = np.stack(
+            [math.radians(look) + rays for (_, _, look), rays in zip(placed, spread, strict=True)]
+        )
+        ranges = segment_ranges(mouths, origins, angles, np.array(reach)).min(axis=1)
+        return frozenset(i for i, r in zip(ids, ranges, strict=True) if math.isfinite(r))
