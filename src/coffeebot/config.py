@@ -591,13 +591,21 @@ class ParticleFilterConfig(Section):
     min_signal_rate_mcps: float = Field(
         0.0, ge=0, description="readings reporting a weaker signal than this are skipped"
     )
+    elevator_blind_mm: float = Field(
+        2000.0,
+        ge=0,
+        description="scans are not weighed while the estimate is this close to an elevator "
+        "door and its heading more than 45 degrees off the hallway's (facing the car, driving "
+        "into it or out): the car behind the door is not in the floor plan, and its walls seen "
+        "through the open doors pulled the cloud sideways into the jamb; odometry and UWB "
+        "carry it there (perception/elevator_mask.py)",
+    )
     elevator_margin_mm: float = Field(
         300.0,
         ge=0,
-        description="readings whose cone may have crossed an elevator's doorway, widened by "
-        "this each side, are not weighed: the car behind the open doors is not in the plan, "
-        "and its walls seen through them pulled the cloud sideways into the jamb; with the "
-        "estimate in the doorway no reading is (perception/elevator_mask.py)",
+        description="along the hallway, readings whose cone may have crossed an elevator's "
+        "doorway, widened by this each side, are not weighed; nor is any reading with the "
+        "estimate this close to the doorway's wall line",
     )
     # Other sources as likelihoods.
     uwb_outlier_probability: float = Field(

@@ -1,6 +1,6 @@
 """Which readings the particle filter leaves out near an elevator: those whose cone may have
-crossed its doorway (the car behind it is not in the plan), and the whole scan with the body
-centre past the wall line in the doorway."""
+crossed its doorway (the car behind it is not in the plan), and the whole scan in the
+doorway or facing the car."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ CONFIG = load_robot_config(ROOT / "boards" / "coffeebot-v1.toml")
 FLOOR = load_floorplan(ROOT / "floorplans" / "cs-building.toml").floor(2)
 ELEVATOR_S_MM = 42000.0
 """Floor 2's elevator door, on the hallway's left (+d), opposite the tea room's."""
-MASK = ElevatorMask(CONFIG.tof.sensors, margin_mm=300.0, reach_mm=4000.0)
+MASK = ElevatorMask(CONFIG.tof.sensors, margin_mm=300.0, blind_mm=2000.0, reach_mm=4000.0)
 
 
 def every_sensor_reads(distance_mm: int | None) -> RangeScan:
@@ -63,7 +63,7 @@ def test_the_heading_uncertainty_widens_the_cones() -> None:
     # doorway: its cone (13.5 degrees each side) meets the wall line only beyond the reading,
     # unless the heading may be 30 degrees off.
     ahead = TofSensorConfig(id=0, channel=0, face="front", x_mm=0, y_mm=0, yaw_deg=0)
-    mask = ElevatorMask([ahead], margin_mm=300.0, reach_mm=4000.0)
+    mask = ElevatorMask([ahead], margin_mm=300.0, blind_mm=2000.0, reach_mm=4000.0)
     reading = RangeReading(sensor=0, status=ReadingStatus.VALID, distance_mm=1500)
     scan = RangeScan(cycle_start_s=0.0, cycle_time_s=0.1, readings=[reading])
     x, y = FLOOR.from_hallway(ELEVATOR_S_MM - 1500.0, 0.0)
@@ -76,9 +76,18 @@ def test_far_from_any_elevator_nothing_is_left_out() -> None:
     assert not MASK.masked(FLOOR, every_sensor_reads(1500), (x, y, 90.0), 30.0)
 
 
-def test_the_doorway_counts_from_the_wall_line() -> None:
-    half = FLOOR.hallway.width_mm / 2
-    assert MASK.in_doorway(FLOOR, *FLOOR.from_hallway(ELEVATOR_S_MM, half + 400.0))
-    assert MASK.in_doorway(FLOOR, *FLOOR.from_hallway(ELEVATOR_S_MM + 700.0, half + 50.0))
-    assert not MASK.in_doorway(FLOOR, *FLOOR.from_hallway(ELEVATOR_S_MM, half - 100.0))
-    assert not MASK.in_doorway(FLOOR, *FLOOR.from_hallway(ELEVATOR_S_MM, -half - 400.0))
+def test_the_whole_scan_is_left_out_in_the_doorway_and_facing_the_car() -> None:
+    half, along = FLOOR.hallway.width_mm / 2, FLOOR.hallway.heading_deg
+    in_car = FLOOR.from_hallway(ELEVATOR_S_MM, half + 400.0)
+    at_the_jamb = FLOOR.from_hallway(ELEVATOR_S_MM + 700.0, half - 250.0)
+    in_the_lane = FLOOR.from_hallway(ELEVATOR_S_MM, half - 400.0)
+    assert MASK.blind(FLOOR, *in_car, along)
+    assert MASK.blind(FLOOR, *at_the_jamb, along + 180.0)
+    # In the lane in front of the door: looking along the hallway either way the scan
+    # counts (less what the mask leaves out); facing the car, or turning there, it does not.
+    assert not MASK.blind(FLOOR, *in_the_lane, along)
+    assert not MASK.blind(FLOOR, *in_the_lane, along + 180.0 - 40.0)
+    assert MASK.blind(FLOOR, *in_the_lane, along + 90.0)
+    assert MASK.blind(FLOOR, *in_the_lane, along - 50.0)
+    # Far from the door, any heading counts.
+    assert not MASK.blind(FLOOR, *FLOOR.from_hallway(ELEVATOR_S_MM - 2500.0, 0.0), along + 90.0)

@@ -3,17 +3,21 @@
 The plan has each elevator's closed leaf, not the car behind it: with the doors open, a cone
 through the doorway reads the car's back wall or a robot riding in it, and weighed against
 the leaf those readings slid the cloud sideways into the jamb (docs/localization.md). Every
-scan used to be dropped within 2 m of the door, which left a robot leaving the tea room
-opposite the elevator on odometry and UWB alone for the turn into the hallway and the first
-metres after it: its heading a few degrees off from the turn, its estimate drifted 60-110 mm
-across the hallway where lane keeping put it, in the fleet, 70 mm from the wall.
+scan used to be dropped within ``blind_mm`` (2 m) of the door, which left a robot leaving
+the tea room opposite the elevator on odometry and UWB alone for the turn into the hallway
+and the first metres after it: its heading a few degrees off from the turn, its estimate
+drifted 60-110 mm across the hallway where lane keeping put it, in the fleet, 70 mm from the
+wall.
 
-So only what may have looked through a doorway is left out: a reading whose cone, from the
-estimate and widened by the estimate's heading uncertainty, crosses the door's mouth (the
-hallway's wall line between the jambs, widened by ``margin_mm`` each side for the
-position's), before the reading's range (plus ``margin_mm``) or, when nothing was ranged,
-within ``reach_mm``. Inside the car, or with the body centre past the wall line in the
-doorway, nothing the sensors see is on the plan, and the whole scan is left out.
+So the whole scan is left out near a door only while the robot may be looking into the car
+with most of its cones: within ``blind_mm`` of the door with its heading more than
+``ALONG_HALLWAY_DEG`` off the hallway's (facing the car, driving into it or out, turning in
+front of it), or with the body centre within ``margin_mm`` of the wall line in the doorway.
+Along the hallway only a reading that may have looked through the doorway is left out: one
+whose cone, from the estimate and widened by the estimate's heading uncertainty, crosses the
+door's mouth (the wall line between the jambs, widened by ``margin_mm`` each side for the
+position's) or its leaf's line behind it, before the reading's range plus ``margin_mm`` or,
+when nothing was ranged, within ``reach_mm``.
 """
 
 from __future__ import annotations
@@ -29,6 +33,9 @@ from coffeebot.messages import RangeScan, ReadingStatus
 from coffeebot.perception.geometry import sensor_origins, spread_rad
 from coffeebot.perception.walls import segment_ranges
 
+ALONG_HALLWAY_DEG = 45.0
+"""Heading this close to the hallway's, either way, only the cones on the car's side can
+see into it, and the mask leaves those out; further off, most cones can."""
 CONE_RAYS = 9
 """Rays across each widened cone: at 1.5 m they lie at most ~100 mm apart, a tenth of a
 doorway."""
@@ -38,40 +45,52 @@ class ElevatorMask:
     """The readings of a scan that may have looked into an elevator car, per floor."""
 
     def __init__(
-        self, sensors: Sequence[TofSensorConfig], margin_mm: float, reach_mm: float
+        self,
+        sensors: Sequence[TofSensorConfig],
+        margin_mm: float,
+        blind_mm: float,
+        reach_mm: float,
     ) -> None:
         self.sensors = {s.id: s for s in sensors}
         self.margin_mm = margin_mm
+        self.blind_mm = blind_mm
         self.reach_mm = reach_mm
         self._mouths: dict[int, np.ndarray] = {}
 
     def mouths(self, floor: Floor) -> np.ndarray:
-        """Each elevator door's mouth on ``floor`` (k, 4: x0, y0, x1, y1), widened along its
-        wall by ``margin_mm`` each side."""
+        """Each elevator door's mouth and its leaf's line on ``floor`` (k, 4: x0, y0, x1,
+        y1), widened along the wall by ``margin_mm`` each side."""
         if floor.level not in self._mouths:
             rows = []
             for door in floor.elevators:
                 hallway = floor.hallway_of(door)
-                wall_d = (1.0 if door.side == "left" else -1.0) * hallway.width_mm / 2
+                sign = 1.0 if door.side == "left" else -1.0
                 lo, hi = door.span
-                rows.append(
-                    (
-                        *hallway.from_local(lo - self.margin_mm, wall_d),
-                        *hallway.from_local(hi + self.margin_mm, wall_d),
+                for d in (hallway.width_mm / 2, hallway.width_mm / 2 + door.recess_mm):
+                    rows.append(
+                        (
+                            *hallway.from_local(lo - self.margin_mm, sign * d),
+                            *hallway.from_local(hi + self.margin_mm, sign * d),
+                        )
                     )
-                )
             self._mouths[floor.level] = np.array(rows, dtype=float).reshape(-1, 4)
         return self._mouths[floor.level]
 
-    def in_doorway(self, floor: Floor, x_mm: float, y_mm: float) -> bool:
-        """Whether the body centre is past the wall line within an elevator's doorway (or
-        its margin): in the car, or half in it."""
+    def blind(self, floor: Floor, x_mm: float, y_mm: float, heading_deg: float) -> bool:
+        """Whether the whole scan is to be left out, the estimate being at ``x_mm``,
+        ``y_mm`` looking along ``heading_deg``: in a doorway, or near one and not looking
+        along the hallway."""
         for door in floor.elevators:
             hallway = floor.hallway_of(door)
             s, d = hallway.to_local(x_mm, y_mm)
             lo, hi = door.span
             outward = d if door.side == "left" else -d
-            if lo - self.margin_mm <= s <= hi + self.margin_mm and outward > hallway.width_mm / 2:
+            wall = hallway.width_mm / 2
+            if lo - self.margin_mm <= s <= hi + self.margin_mm and outward > wall - self.margin_mm:
+                return True
+            off_axis = abs(math.remainder(heading_deg - hallway.heading_deg, 180.0))
+            near = math.dist(floor.behind_door(door, 0.0), (x_mm, y_mm)) < self.blind_mm
+            if near and off_axis > ALONG_HALLWAY_DEG:
                 return True
         return False
 

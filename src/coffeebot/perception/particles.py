@@ -81,7 +81,10 @@ class ParticlePoseFusion:
         self.cfg: ParticleFilterConfig = cfg.particles
         self.model = RangeModel(tof.sensors, tof.max_range_mm, self.cfg)
         self.elevator_mask = ElevatorMask(
-            tof.sensors, self.cfg.elevator_margin_mm, float(tof.max_range_mm)
+            tof.sensors,
+            self.cfg.elevator_margin_mm,
+            self.cfg.elevator_blind_mm,
+            float(tof.max_range_mm),
         )
         self.clearance_mm = clearance_mm
         self.rng, self._draw_rng = (
@@ -312,7 +315,7 @@ class ParticlePoseFusion:
         if not (moved or self._scan_due):
             return False
         x, y, heading = self.pose()
-        if self.elevator_mask.in_doorway(self.floor, x, y):
+        if self.elevator_mask.blind(self.floor, x, y, heading):
             return False
         heading_margin = min(MAX_HEADING_MARGIN_DEG, 3.0 * self.sigmas()[2])
         masked = self.elevator_mask.masked(self.floor, scan, (x, y, heading), heading_margin)
