@@ -128,7 +128,7 @@ class ElevatorMask:
                 reach.append(self.reach_mm)
             ids.append(reading.sensor)
             mounts.append(mount)
-        if not ids or len(mouths) == 0:
+        if not ids:
             return frozenset()
         placed = sensor_origins(*pose, mounts)
         origins = np.array([(x, y) for x, y, _ in placed])
