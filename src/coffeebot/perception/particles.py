@@ -294,14 +294,14 @@ class ParticlePoseFusion:
         self.log_w -= self.log_w.max()
         self._weights = None
         self._estimate = None
+        if fit is not None:
+            source, value = fit
+            self.monitors[source].update(value)
         # Fresh particles have every heading, for the scans to sort out: none while the
-        # scans cannot be weighed (at an elevator), where UWB alone kept them. Nor are the
-        # fits averaged meanwhile: a fit fallen there would inject a burst on the way out.
+        # scans cannot be weighed (at an elevator), where UWB alone kept them, and the
+        # estimate of a robot standing there 45 s swung 30 degrees to a mode of them.
         inject = 0.0
         if not self._scans_blind:
-            if fit is not None:
-                source, value = fit
-                self.monitors[source].update(value)
             inject = max(m.injection_probability for m in self.monitors.values())
         ess = self._sample_size()
         if inject > 0 or ess < self.cfg.resample_ess_fraction * len(self.particles):
