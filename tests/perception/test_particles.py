@@ -345,29 +345,6 @@ def test_tracks_across_the_hallway_opposite_the_elevator(seed: int) -> None:
     assert max(across) < 40.0
 
 
-def test_no_particles_are_injected_while_the_scans_cannot_be_weighed() -> None:
-    # Facing the elevator in front of its door no scan is weighed. UWB fixes that fit ever
-    # worse have recovery inject fresh particles of every heading, for the scans to sort out;
-    # there nothing could, and a robot standing there 45 s in the fleet had its heading
-    # estimate swing 30 degrees to a mode of them.
-    floor = PLAN.floor(2)
-
-    def standing_at(s_mm: float) -> ParticlePoseFusion:
-        fusion = ParticlePoseFusion(PLAN, CONFIG.tof, PARTICLE_CONFIG.state)
-        fusion.change_floor(2)
-        x, y = floor.from_hallway(s_mm, 0.0)
-        fusion.reset(x, y, floor.hallway.heading_deg + 90.0, 30.0, 2.0)
-        fusion.update_ranges(scan(*(valid(1500, sensor) for sensor in range(8))))
-        for k in range(100):
-            fusion.update_position(x + (0.0 if k < 50 else 600.0), y, 100.0)
-        return fusion
-
-    assert standing_at(20000.0).injected > 0
-    at_the_car = standing_at(42000.0)
-    assert at_the_car.injected == 0
-    assert at_the_car.sigmas()[2] < 5.0
-
-
 def test_recovers_from_a_kidnap() -> None:
     run = start_run(12000.0, seed=22)
     run.drive(1500.0)

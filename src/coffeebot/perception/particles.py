@@ -110,8 +110,6 @@ class ParticlePoseFusion:
         self._scan_travel_mm = 0.0
         self._scan_turn_rad = 0.0
         self._scan_due = True
-        self._scans_blind = False
-        """The last scan came where none is weighed (:meth:`ElevatorMask.blind`)."""
         self._last_fix: tuple[float, float] | None = None
         self.monitors = {
             "ranges": RecoveryMonitor(self.cfg.recovery_alpha_slow, self.cfg.recovery_alpha_fast),
@@ -297,12 +295,7 @@ class ParticlePoseFusion:
         if fit is not None:
             source, value = fit
             self.monitors[source].update(value)
-        # Fresh particles have every heading, for the scans to sort out: none while the
-        # scans cannot be weighed (at an elevator), where UWB alone kept them, and the
-        # estimate of a robot standing there 45 s swung 30 degrees to a mode of them.
-        inject = 0.0
-        if not self._scans_blind:
-            inject = max(m.injection_probability for m in self.monitors.values())
+        inject = max(m.injection_probability for m in self.monitors.values())
         ess = self._sample_size()
         if inject > 0 or ess < self.cfg.resample_ess_fraction * len(self.particles):
             self._resample(inject)
@@ -322,8 +315,7 @@ class ParticlePoseFusion:
         if not (moved or self._scan_due):
             return False
         x, y, heading = self.pose()
-        self._scans_blind = self.elevator_mask.blind(self.floor, x, y, heading)
-        if self._scans_blind:
+        if self.elevator_mask.blind(self.floor, x, y, heading):
             return False
         heading_margin = min(MAX_HEADING_MARGIN_DEG, 3.0 * self.sigmas()[2])
         masked = self.elevator_mask.masked(self.floor, scan, (x, y, heading), heading_margin)
