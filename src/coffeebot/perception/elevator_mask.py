@@ -55,7 +55,12 @@ class ElevatorMask:
         self.margin_mm = margin_mm
         self.blind_mm = blind_mm
         self.reach_mm = reach_mm
+        body = max((math.hypot(s.x_mm, s.y_mm) for s in sensors), default=0.0)
+        self._longest_mm = reach_mm + margin_mm + body
+        """How far from the body centre a widened reading can reach."""
         self._mouths: dict[int, np.ndarray] = {}
+        self._centres: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        """Per floor: each mouth's midpoint (k, 2) and half its length (k,)."""
 
     def mouths(self, floor: Floor) -> np.ndarray:
         """Each elevator door's mouth and its leaf's line on ``floor`` (k, 4: x0, y0, x1,
@@ -73,7 +78,12 @@ class ElevatorMask:
                             *hallway.from_local(hi + self.margin_mm, sign * d),
                         )
                     )
-            self._mouths[floor.level] = np.array(rows, dtype=float).reshape(-1, 4)
+            mouths = np.array(rows, dtype=float).reshape(-1, 4)
+            self._mouths[floor.level] = mouths
+            self._centres[floor.level] = (
+                (mouths[:, 0:2] + mouths[:, 2:4]) / 2,
+                np.hypot(mouths[:, 2] - mouths[:, 0], mouths[:, 3] - mouths[:, 1]) / 2,
+            )
         return self._mouths[floor.level]
 
     def blind(self, floor: Floor, x_mm: float, y_mm: float, heading_deg: float) -> bool:
@@ -94,16 +104,12 @@ class ElevatorMask:
                 return True
         return False
 
-    def _near(self, mouths: np.ndarray, x_mm: float, y_mm: float) -> bool:
-        """Whether any mouth lies within the longest reach of the body centre (a cheap
-        test first: most scans are taken nowhere near an elevator)."""
-        if len(mouths) == 0:
-            return False
-        mid_x, mid_y = (mouths[:, 0] + mouths[:, 2]) / 2, (mouths[:, 1] + mouths[:, 3]) / 2
-        half = np.hypot(mouths[:, 2] - mouths[:, 0], mouths[:, 3] - mouths[:, 1]) / 2
-        body = max(math.hypot(s.x_mm, s.y_mm) for s in self.sensors.values())
-        longest = self.reach_mm + self.margin_mm + body
-        return bool((np.hypot(mid_x - x_mm, mid_y - y_mm) - half <= longest).any())
+    def _near(self, floor: Floor, x_mm: float, y_mm: float) -> bool:
+        """Whether any mouth on ``floor`` lies within the longest reach of the body centre
+        (a cheap test first: most scans are taken nowhere near an elevator)."""
+        middles, halves = self._centres[floor.level]
+        gaps = np.hypot(middles[:, 0] - x_mm, middles[:, 1] - y_mm) - halves
+        return bool((gaps <= self._longest_mm).any())
 
     def masked(
         self,
@@ -115,7 +121,7 @@ class ElevatorMask:
         """The sensors whose reading in ``scan`` may have looked through a doorway, from
         ``pose`` (x mm, y mm, heading deg) with its heading ``heading_margin_deg`` uncertain."""
         mouths = self.mouths(floor)
-        if not self._near(mouths, pose[0], pose[1]):
+        if not self._near(floor, pose[0], pose[1]):
             return frozenset()
         ids, mounts, reach = [], [], []
         for reading in scan.readings:
