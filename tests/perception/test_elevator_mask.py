@@ -91,3 +91,19 @@ def test_the_whole_scan_is_left_out_in_the_doorway_and_facing_the_car() -> None:
     assert MASK.blind(FLOOR, *in_the_lane, along - 50.0)
     # Far from the door, any heading counts.
     assert not MASK.blind(FLOOR, *FLOOR.from_hallway(ELEVATOR_S_MM - 2500.0, 0.0), along + 90.0)
+
+
+def test_a_shut_door_is_weighed_like_a_wall_but_not_from_in_the_doorway() -> None:
+    door = FLOOR.elevator
+    assert door is not None
+    shut = frozenset({door.id})
+    half, along = FLOOR.hallway.width_mm / 2, FLOOR.hallway.heading_deg
+    in_the_lane = FLOOR.from_hallway(ELEVATOR_S_MM, half - 400.0)
+    assert MASK.blind(FLOOR, *in_the_lane, along + 90.0)
+    assert not MASK.blind(FLOOR, *in_the_lane, along + 90.0, shut)
+    # In the car the plan has no walls for what the sensors see, shut or not.
+    assert MASK.blind(FLOOR, *FLOOR.from_hallway(ELEVATOR_S_MM, half + 400.0), along, shut)
+    facing = (*FLOOR.from_hallway(ELEVATOR_S_MM, -300.0), along + 90.0)
+    assert MASK.masked(FLOOR, every_sensor_reads(1500), facing, 5.0)
+    assert not MASK.masked(FLOOR, every_sensor_reads(1500), facing, 5.0, shut)
+    assert MASK.masked(FLOOR, every_sensor_reads(1500), facing, 5.0, frozenset({"another"}))

@@ -18,6 +18,12 @@ whose cone, from the estimate and widened by the estimate's heading uncertainty,
 door's mouth (the wall line between the jambs, widened by ``margin_mm`` each side for the
 position's) or its leaf's line behind it, before the reading's range plus ``margin_mm`` or,
 when nothing was ranged, within ``reach_mm``.
+
+A door the elevator interface reports shut (its car elsewhere, travelling, or here with the
+doors closed) is the plan's leaf and nothing behind it: the readings towards it are weighed
+like any wall's, facing it too, and only the doorway rule stays (a robot in the doorway or
+in the car sees the car's walls, which the plan does not have). The caller says which doors
+are shut; a door it knows nothing of may be open.
 """
 
 from __future__ import annotations
@@ -59,6 +65,8 @@ class ElevatorMask:
         self._longest_mm = reach_mm + margin_mm + body
         """How far from the body centre a widened reading can reach."""
         self._mouths: dict[int, np.ndarray] = {}
+        self._doors: dict[int, list[str]] = {}
+        """Per floor: the door each row of the mouths belongs to."""
         self._centres: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         """Per floor: each mouth's midpoint (k, 2) and half its length (k,)."""
 
@@ -66,7 +74,7 @@ class ElevatorMask:
         """Each elevator door's mouth and its leaf's line on ``floor`` (k, 4: x0, y0, x1,
         y1), widened along the wall by ``margin_mm`` each side."""
         if floor.level not in self._mouths:
-            rows = []
+            rows, doors = [], []
             for door in floor.elevators:
                 hallway = floor.hallway_of(door)
                 sign = 1.0 if door.side == "left" else -1.0
@@ -78,18 +86,27 @@ class ElevatorMask:
                             *hallway.from_local(hi + self.margin_mm, sign * d),
                         )
                     )
+                    doors.append(door.id)
             mouths = np.array(rows, dtype=float).reshape(-1, 4)
             self._mouths[floor.level] = mouths
+            self._doors[floor.level] = doors
             self._centres[floor.level] = (
                 (mouths[:, 0:2] + mouths[:, 2:4]) / 2,
                 np.hypot(mouths[:, 2] - mouths[:, 0], mouths[:, 3] - mouths[:, 1]) / 2,
             )
         return self._mouths[floor.level]
 
-    def blind(self, floor: Floor, x_mm: float, y_mm: float, heading_deg: float) -> bool:
+    def blind(
+        self,
+        floor: Floor,
+        x_mm: float,
+        y_mm: float,
+        heading_deg: float,
+        shut: frozenset[str] = frozenset(),
+    ) -> bool:
         """Whether the whole scan is to be left out, the estimate being at ``x_mm``,
-        ``y_mm`` looking along ``heading_deg``: in a doorway, or near one and not looking
-        along the hallway."""
+        ``y_mm`` looking along ``heading_deg``: in a doorway, or near one that is not in
+        ``shut`` (door ids) and not looking along the hallway."""
         for door in floor.elevators:
             hallway = floor.hallway_of(door)
             s, d = hallway.to_local(x_mm, y_mm)
@@ -98,18 +115,20 @@ class ElevatorMask:
             wall = hallway.width_mm / 2
             if lo - self.margin_mm <= s <= hi + self.margin_mm and outward > wall - self.margin_mm:
                 return True
+            if door.id in shut:
+                continue
             off_axis = abs(math.remainder(heading_deg - hallway.heading_deg, 180.0))
             near = math.dist(floor.behind_door(door, 0.0), (x_mm, y_mm)) < self.blind_mm
             if near and off_axis > ALONG_HALLWAY_DEG:
                 return True
         return False
 
-    def _near(self, floor: Floor, x_mm: float, y_mm: float) -> bool:
-        """Whether any mouth on ``floor`` lies within the longest reach of the body centre
-        (a cheap test first: most scans are taken nowhere near an elevator)."""
+    def _near(self, floor: Floor, x_mm: float, y_mm: float) -> np.ndarray:
+        """Which mouths on ``floor`` lie within the longest reach of the body centre (a
+        cheap test first: most scans are taken nowhere near an elevator)."""
         middles, halves = self._centres[floor.level]
         gaps = np.hypot(middles[:, 0] - x_mm, middles[:, 1] - y_mm) - halves
-        return bool((gaps <= self._longest_mm).any())
+        return gaps <= self._longest_mm
 
     def masked(
         self,
@@ -117,12 +136,18 @@ class ElevatorMask:
         scan: RangeScan,
         pose: tuple[float, float, float],
         heading_margin_deg: float,
+        shut: frozenset[str] = frozenset(),
     ) -> frozenset[int]:
-        """The sensors whose reading in ``scan`` may have looked through a doorway, from
-        ``pose`` (x mm, y mm, heading deg) with its heading ``heading_margin_deg`` uncertain."""
+        """The sensors whose reading in ``scan`` may have looked through a doorway not in
+        ``shut`` (door ids), from ``pose`` (x mm, y mm, heading deg) with its heading
+        ``heading_margin_deg`` uncertain."""
         mouths = self.mouths(floor)
-        if not self._near(floor, pose[0], pose[1]):
+        near = self._near(floor, pose[0], pose[1])
+        if shut:
+            near &= np.array([door not in shut for door in self._doors[floor.level]], dtype=bool)
+        if not near.any():
             return frozenset()
+        mouths = mouths[near]
         ids, mounts, reach = [], [], []
         for reading in scan.readings:
             mount = self.sensors.get(reading.sensor)

@@ -134,8 +134,9 @@ class PoseFusion(Protocol):
         """3x3 covariance of (x mm, y mm, heading deg)."""
         ...
 
-    def update_ranges(self, scan: RangeScan) -> bool:
-        """A ToF scan against the floor plan (False: not used)."""
+    def update_ranges(self, scan: RangeScan, shut_doors: frozenset[str] = frozenset()) -> bool:
+        """A ToF scan against the floor plan (False: not used); ``shut_doors``: the elevator
+        doors on this floor known shut, the plan's leaf and nothing behind it."""
         ...
 
     def change_floor(self, level: int) -> None:
@@ -263,7 +264,7 @@ class EkfPoseFusion:
         scale = np.array([1.0, 1.0, math.degrees(1.0)])
         return self.P * np.outer(scale, scale)
 
-    def update_ranges(self, scan: RangeScan) -> bool:
+    def update_ranges(self, scan: RangeScan, shut_doors: frozenset[str] = frozenset()) -> bool:
         """The Kalman filter sees the walls through the angle and door modules instead."""
         return False
 

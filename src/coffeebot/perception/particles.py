@@ -304,7 +304,7 @@ class ParticlePoseFusion:
         """The weighted mean likelihood ratio: 1 when every particle explains it perfectly."""
         return float(np.dot(self.weights, np.exp(log_fit)))
 
-    def update_ranges(self, scan: RangeScan) -> bool:
+    def update_ranges(self, scan: RangeScan, shut_doors: frozenset[str] = frozenset()) -> bool:
         if not self.initialised:
             return False
         cfg = self.cfg
@@ -315,10 +315,12 @@ class ParticlePoseFusion:
         if not (moved or self._scan_due):
             return False
         x, y, heading = self.pose()
-        if self.elevator_mask.blind(self.floor, x, y, heading):
+        if self.elevator_mask.blind(self.floor, x, y, heading, shut_doors):
             return False
         heading_margin = min(MAX_HEADING_MARGIN_DEG, 3.0 * self.sigmas()[2])
-        masked = self.elevator_mask.masked(self.floor, scan, (x, y, heading), heading_margin)
+        masked = self.elevator_mask.masked(
+            self.floor, scan, (x, y, heading), heading_margin, shut_doors
+        )
         if masked:
             kept = [r for r in scan.readings if r.sensor not in masked]
             scan = scan.model_copy(update={"readings": kept})

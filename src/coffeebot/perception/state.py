@@ -18,6 +18,7 @@ from coffeebot.messages import (
     CurrentState,
     DeliveryUpdate,
     DoorEvent,
+    ElevatorState,
     MoveInstruction,
     Odometry,
     OrderDispatch,
@@ -31,6 +32,9 @@ from coffeebot.perception.geometry import TravelFrame
 from coffeebot.perception.particles import ParticlePoseFusion
 
 UWB_MIN_QUALITY = 10
+ELEVATOR_STATE_FRESH_S = 0.5
+"""The elevator's state older than this says nothing of its doors (the elevator module
+reports every 0.2 s): they may have opened since."""
 
 
 def make_fusion(config: RobotConfig, plan: FloorPlan) -> PoseFusion:
@@ -72,6 +76,7 @@ class StateEstimator:
         self.delivery_status: DeliveryUpdate | None = None
         self.last_door_room: str | None = None
         self.stamps: dict[str, float] = {}
+        self._elevator: tuple[ElevatorState, float] | None = None
 
     def place(self, x_mm: float, y_mm: float, heading_deg: float, floor: int) -> None:
         """A known start (the dock in the tea room) or a known arrival (out of the elevator)."""
@@ -136,8 +141,31 @@ class StateEstimator:
             self.stamps["camera"] = now
         return used
 
+    def on_elevator(self, state: ElevatorState, now: float) -> bool:
+        """Where the car is and its doors: which of them are shut, for the scans. Changes
+        no estimate (False)."""
+        self._elevator = (state, now)
+        return False
+
+    def shut_elevator_doors(self, now: float) -> frozenset[str]:
+        """The elevator doors on this floor known shut at ``now``: those of the car the
+        interface reports, by a fresh state, with the car elsewhere, travelling or here
+        with its doors closed. A door of another car, or any without a fresh state, may be
+        open."""
+        if self._elevator is None or not self.plan.cars:
+            return frozenset()
+        state, stamp = self._elevator
+        if state.source == "none" or now - stamp > ELEVATOR_STATE_FRESH_S:
+            return frozenset()
+        car = state.car if state.car is not None else next(iter(self.plan.cars))
+        stops = [stop for stop in self.plan.cars.get(car, []) if stop.floor.level == self.floor]
+        here = not state.moving and state.car_floor == self.floor
+        if here and state.doors != "closed":
+            return frozenset()
+        return frozenset(stop.door.id for stop in stops)
+
     def on_scan(self, scan: RangeScan, now: float) -> bool:
-        used = self.fusion.update_ranges(scan)
+        used = self.fusion.update_ranges(scan, self.shut_elevator_doors(now))
         if used:
             self.stamps["ranges"] = now
         return used
