@@ -336,8 +336,6 @@ class MoveInstruction(Message):
     ``heading_deg``. ``stop``/``wait``: stand still.
     ``stop``: False passes ``target_s_mm`` at speed (a lane change on the way), True stops
     there. ``avoid``: whether motion may leave the lane around a static obstacle.
-    ``lane_angle_deg``: the steepest angle to the lane on this move (None: the configured
-    ``max_lane_angle_deg``), for a lane change over less way than that angle needs.
     """
 
     id: int = 0
@@ -353,7 +351,6 @@ class MoveInstruction(Message):
     stop: bool = True
     target_door: str | None = None
     avoid: bool = True
-    lane_angle_deg: float | None = Field(None, gt=0, le=90)
     detail: str = ""
 
 

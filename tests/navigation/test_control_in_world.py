@@ -5,7 +5,6 @@ from __future__ import annotations
 from helpers import CONFIG, PLAN, PLANNER, Run, drive
 
 from coffeebot.messages import MotionState, MoveInstruction
-from coffeebot.navigation.route import Move, RoutePlanner
 from coffeebot.sim.world import ObstacleSpec, Pose, RobotSpec, World
 
 FLOOR = PLAN.floor(2)
@@ -101,29 +100,6 @@ def test_regains_the_lane_without_weaving() -> None:
     offsets = [FLOOR.to_hallway(x, y)[1] - LANE for x, y, _ in run.path]
     assert min(offsets) > -25, f"swung {-min(offsets):.0f} mm past the lane"
     assert abs(offsets[-1]) < 25
-
-
-def test_a_fleet_robot_from_313_reaches_its_waiting_lane_short_of_the_car() -> None:
-    """Turned round at 313's door (on the car's side, 3 m from it), a fleet's robot crosses
-    the hallway to wait beside the other wall short of the car, over less than 2 m. At the
-    usual steepest angle it stopped 170 mm short of that lane (250 mm when a person slowed
-    it), where the robot coming out of the car had no room to pass it."""
-    fleet_robot = RoutePlanner.for_robot(PLAN, CONFIG, PLAN.floor(2).parking[1])
-    floor = PLAN.floor(3)
-    door = PLAN.find_room("313").door
-    steps = fleet_robot.route(3, door.at_mm, fleet_robot.base).steps
-    [wait] = [
-        s for s in steps if isinstance(s, Move) and s.instruction.detail == "short of the elevator"
-    ]
-    x, y = floor.from_hallway(
-        door.at_mm - fleet_robot.pivot_mm, fleet_robot.side_lane_mm(floor, door)
-    )
-    world = World(PLAN, RobotSpec.from_config(CONFIG), floor=3, pose=Pose(x, y, 0.0), seed=3)
-    run = drive(world, wait.instruction, max_time_s=30)
-    _, d = floor.to_hallway(world.robot.pose.x_mm, world.robot.pose.y_mm)
-    assert run.done and not world.robot.collisions
-    assert wait.instruction.lane_mm is not None
-    assert abs(d - wait.instruction.lane_mm) < 50, f"{d - wait.instruction.lane_mm:.0f} mm off"
 
 
 def test_waits_for_a_box_it_may_not_drive_around() -> None:

@@ -62,23 +62,16 @@ class SpeedProfile:
         return current_mm_s + max(-limit, min(limit, target_mm_s - current_mm_s))
 
 
-def lane_heading_deg(
-    travel_deg: float,
-    lateral_error_mm: float,
-    cfg: MotionConfig,
-    max_angle_deg: float | None = None,
-) -> float:
+def lane_heading_deg(travel_deg: float, lateral_error_mm: float, cfg: MotionConfig) -> float:
     """Heading that steers back onto the lane: ``lateral_error`` is lane minus position,
-    positive to the left of travel; at most ``max_angle_deg`` (None: the configured
-    ``max_lane_angle_deg``) off the travel direction.
+    positive to the left of travel.
 
     It aims at the lane point ``lane_lookahead_mm`` ahead. Linearised, the lateral error then
     obeys ``e'' + h e' + (v h / L) e = 0`` (``h`` the heading gain, ``L`` the lookahead), so
     the default 800 mm keeps the loop well damped at cruise speed (about 0.9) instead of
     weaving on every centimetre of pose noise."""
     offset = math.degrees(math.atan2(lateral_error_mm, cfg.lane_lookahead_mm))
-    steepest = cfg.max_lane_angle_deg if max_angle_deg is None else max_angle_deg
-    return travel_deg + max(-steepest, min(steepest, offset))
+    return travel_deg + max(-cfg.max_lane_angle_deg, min(cfg.max_lane_angle_deg, offset))
 
 
 def turn_rate_dps(heading_deg: float, wanted_deg: float, cfg: MotionConfig) -> float:

@@ -513,7 +513,7 @@ class MotionController:
             return self._go_round(
                 ins, floor, pose, detour_lane, direction, target, now, dt, limit, remaining
             )
-        heading = lane_heading_deg(travel, (lane - d) * direction, cfg, ins.lane_angle_deg)
+        heading = lane_heading_deg(travel, (lane - d) * direction, cfg)
         rate = turn_rate_dps(pose.heading_deg, heading, cfg)
         if (
             target <= 0.0

@@ -56,12 +56,6 @@ from coffeebot.navigation.passing import right_lane_mm
 DOORWAY_CLEARANCE_MM = 100.0
 """Between a robot waiting at the holding point and the doorways it waits beside."""
 
-SHORT_LANE_CHANGE_DEG = 45.0
-"""The steepest angle of a lane change to a waiting lane over less than ``pull_over_mm``: at
-the configured 20 degrees, a robot from 313 crossing the hallway (800 mm) over 1.9 m to wait
-short of the car stopped 170 mm short of its lane (250 mm, slowed by a person), where the
-robot coming out of the car could not pass it and each held what the other waited for."""
-
 
 @dataclass(frozen=True)
 class Move:
@@ -238,12 +232,10 @@ class RoutePlanner:
         speed: float | None = None,
         stop: bool = True,
         door: Door | None = None,
-        angle_deg: float | None = None,
         detail: str,
     ) -> Move:
         """Along ``floor``'s hallway to ``to_s`` in ``lane``; towards ``door``, the stop
-        refined by that door's detection; ``angle_deg``: the steepest angle to the lane
-        (None: the configured one)."""
+        refined by that door's detection."""
         return Move(
             MoveInstruction(
                 action="follow_lane",
@@ -254,7 +246,6 @@ class RoutePlanner:
                 speed_mm_s=speed or self.motion.cruise_speed_mm_s,
                 stop=stop,
                 target_door=None if door is None else door.id,
-                lane_angle_deg=angle_deg,
                 detail=detail,
             )
         )
@@ -626,9 +617,9 @@ class RoutePlanner:
         lane and 17 degrees askew, its corner in the way of the robot coming out of the room
         for good): square to the hallway, then into that lane along the way there is, up to
         ``hold_short_mm`` short of the turn at ``turn_at``, room for the robot coming out to
-        turn into its lane, at up to ``SHORT_LANE_CHANGE_DEG`` to the lane, and square again
-        there. Driven straight at a point in the lane, the front sensors read the wall near
-        enough to stop it mid-hallway; lane keeping flattens its angle as the lane nears."""
+        turn into its lane, and square again there (lane keeping over so short a way stops
+        ~100 mm short of the lane, askew). Driven diagonally at the lane, the front sensors
+        read the wall near enough to stop it mid-hallway."""
         if (hold_at - s) * direction >= self.nav.pull_over_mm:
             return [self._lane(floor, hold_at, waiting_lane, detail=detail)]
         wait_at = turn_at - direction * self.nav.hold_short_mm
@@ -637,9 +628,7 @@ class RoutePlanner:
         along = self.travel_deg(floor, direction)
         return [
             self._turn(floor, along, "along the hallway"),
-            self._lane(
-                floor, wait_at, waiting_lane, angle_deg=SHORT_LANE_CHANGE_DEG, detail=detail
-            ),
+            self._lane(floor, wait_at, waiting_lane, detail=detail),
             self._turn(floor, along, "square to the lane"),
         ]
 
