@@ -76,7 +76,8 @@ class StateEstimator:
         self.delivery_status: DeliveryUpdate | None = None
         self.last_door_room: str | None = None
         self.stamps: dict[str, float] = {}
-        self._elevator: tuple[ElevatorState, float] | None = None
+        self._shut_doors: tuple[dict[int, frozenset[str]], float] | None = None
+        """The elevator doors shut per floor by the latest state, and when it came."""
 
     def place(self, x_mm: float, y_mm: float, heading_deg: float, floor: int) -> None:
         """A known start (the dock in the tea room) or a known arrival (out of the elevator)."""
@@ -144,25 +145,31 @@ class StateEstimator:
     def on_elevator(self, state: ElevatorState, now: float) -> bool:
         """Where the car is and its doors: which of them are shut, for the scans. Changes
         no estimate (False)."""
-        self._elevator = (state, now)
+        self._shut_doors = (self._shut_by_floor(state), now)
         return False
 
-    def shut_elevator_doors(self, now: float) -> frozenset[str]:
-        """The elevator doors on this floor known shut at ``now``: those of the car the
-        interface reports, by a fresh state, with the car elsewhere, travelling or here
-        with its doors closed. A door of another car, or any without a fresh state, may be
-        open."""
-        if self._elevator is None or not self.plan.cars:
-            return frozenset()
-        state, stamp = self._elevator
-        if state.source == "none" or now - stamp > ELEVATOR_STATE_FRESH_S:
-            return frozenset()
+    def _shut_by_floor(self, state: ElevatorState) -> dict[int, frozenset[str]]:
+        """Per floor, the doors ``state`` says are shut: those of the car the interface
+        reports, with the car elsewhere, travelling or there with its doors closed. A door
+        of another car may be open; an interface without a car says nothing."""
+        if state.source == "none" or not self.plan.cars:
+            return {}
         car = state.car if state.car is not None else next(iter(self.plan.cars))
-        stops = [stop for stop in self.plan.cars.get(car, []) if stop.floor.level == self.floor]
-        here = not state.moving and state.car_floor == self.floor
-        if here and state.doors != "closed":
+        shut: dict[int, frozenset[str]] = {}
+        for stop in self.plan.cars.get(car, []):
+            level = stop.floor.level
+            if state.moving or state.car_floor != level or state.doors == "closed":
+                shut[level] = shut.get(level, frozenset()) | {stop.door.id}
+        return shut
+
+    def shut_elevator_doors(self, now: float) -> frozenset[str]:
+        """The elevator doors on this floor known shut at ``now``, by a fresh state."""
+        if self._shut_doors is None:
             return frozenset()
-        return frozenset(stop.door.id for stop in stops)
+        shut, stamp = self._shut_doors
+        if now - stamp > ELEVATOR_STATE_FRESH_S:
+            return frozenset()
+        return shut.get(self.floor, frozenset())
 
     def on_scan(self, scan: RangeScan, now: float) -> bool:
         used = self.fusion.update_ranges(scan, self.shut_elevator_doors(now))
