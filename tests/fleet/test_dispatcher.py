@@ -69,8 +69,15 @@ class Harness:
         self.made: dict[str, int] = {}
         """Delivery reports each robot has made in its current run."""
 
-    async def robot_reports(self, robot: str, order_id: str | None = None, floor: int = 2) -> None:
-        """A state report saying the robot carries ``order_id``, with every report made."""
+    async def robot_reports(
+        self,
+        robot: str,
+        order_id: str | None = None,
+        floor: int = 2,
+        latest: DeliveryReport | None = None,
+    ) -> None:
+        """A state report saying the robot carries ``order_id``, with every report made
+        (``latest`` the last of them)."""
         self.seq += 1
         await self.dispatcher.on_connection(
             robot, Connection(state=ConnectionState.ONLINE, at_s=time.time())
@@ -87,6 +94,7 @@ class Harness:
                 y_mm=BASE[1],
                 heading_deg=0.0,
                 order_id=order_id,
+                latest_report=latest,
             ),
         )
 
@@ -251,6 +259,27 @@ async def test_a_state_report_overtaking_the_delivered_report_fails_nothing(
     assert (await harness.dispatcher.get(placed.id)).status is OrderStatus.ARRIVED
     await harness.dispatcher.on_delivery("r1", delivered)
     assert (await harness.dispatcher.get(placed.id)).status is OrderStatus.DELIVERED
+
+
+async def test_a_report_that_reached_nobody_is_taken_from_the_next_state_report(
+    harness: Harness,
+) -> None:
+    """A restarted broker keeps no sessions: a robot that reconnects before the dispatcher
+    and sends at once sends to nobody (found with the broker killed: its cup stood at the
+    door, nobody was told, and the order failed after three minutes)."""
+    await harness.robot_reports("r1")
+    placed = await harness.assigned_and_taken("r1")
+    await harness.dispatcher.on_delivery(
+        "r1", harness.report("r1", placed.id, OrderStatus.ON_THE_WAY)
+    )
+    harness.report("r1", placed.id, OrderStatus.WAITING_FOR_ELEVATOR)  # both reach nobody
+    arrived = harness.report("r1", placed.id, OrderStatus.ARRIVED)
+    await harness.robot_reports("r1", placed.id, latest=arrived)
+    assert (await harness.dispatcher.get(placed.id)).status is OrderStatus.ARRIVED
+    await harness.robot_reports("r1", placed.id, latest=arrived)
+    await harness.dispatcher.on_delivery("r1", arrived)  # a copy that did go, late
+    assert harness.announced.count((placed.id, OrderStatus.ARRIVED)) == 1, "applied once"
+    assert harness.actions("r1") == [], "nothing to drop"
 
 
 async def test_a_restarted_robot_numbers_its_reports_afresh_and_they_apply(

@@ -219,6 +219,18 @@ async def test_an_order_goes_to_a_robot_and_is_delivered_over_the_broker(fleet: 
     await fleet.until_status(placed.id, OrderStatus.ARRIVED)
     fleet.act("pickup_confirmed", placed.id)
     await fleet.until_status(placed.id, OrderStatus.DELIVERED)
+    await fleet.until(
+        lambda: _states_repeat(fleet, order.robot, OrderStatus.DELIVERED),
+        "its state reports repeat its latest delivery report",
+    )
+
+
+async def _states_repeat(fleet: Fleet, robot: str | None, status: OrderStatus) -> bool:
+    """Whether ``robot``'s last state report carries its latest delivery report, ``status``
+    (a report sent to nobody, after a broker restart, is not lost)."""
+    assert fleet.orders.dispatcher is not None and robot is not None
+    state = fleet.orders.dispatcher.robots[robot].state
+    return state is not None and getattr(state.latest_report, "status", None) is status
 
 
 async def _ready(fleet: Fleet, order_id: str) -> bool:

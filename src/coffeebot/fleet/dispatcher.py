@@ -23,11 +23,14 @@ The rules, and why:
   nobody is declared stale: it cannot hear anyone.
 - **Reports are applied in order, once.** Each robot numbers its delivery reports afresh in
   each run of its software; a repeat after a reconnect is ignored, and a report for an order
-  the robot does not have (any more) is refused and the robot is told to drop it. A state
-  report's word on the robot's order is taken only once every delivery report made before
-  it has been applied: the two travel apart, and a robot that has just reported its cup
-  delivered says it carries nothing, perhaps before the report arrives. Nothing is served
-  twice: an order that left the tea room is never given to another robot.
+  the robot does not have (any more) is refused and the robot is told to drop it. The
+  latest report also comes with every state report: one sent while the dispatcher was not
+  subscribed (both reconnecting to a restarted broker) reached nobody, and the latest
+  overtakes the earlier ones it skips. A state report's word on the
+  robot's order is taken only once every delivery report made before it has been applied:
+  the two travel apart, and a robot that has just reported its cup delivered says it
+  carries nothing, perhaps before the report arrives. Nothing is served twice: an order
+  that left the tea room is never given to another robot.
 - **Shared places** (the elevator, the loading spot) are lent by a :class:`LeaseBook`: one
   robot at a time, in the order they asked, expiring unless renewed.
 - **Traffic.** Each online robot is told where the others are (:meth:`Dispatcher.traffic`,
@@ -209,6 +212,9 @@ class Dispatcher:
         record.state_at_s = self.now()
         record.connection = ConnectionState.ONLINE
         self._heard(record)
+        latest = state.latest_report
+        if latest is not None and latest.seq > record.last_report:
+            await self.on_delivery(robot, latest)  # its own copy reached nobody
         await self._reconcile(record)
 
     async def _reconcile(self, record: RobotRecord) -> None:

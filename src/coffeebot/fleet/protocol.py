@@ -85,6 +85,20 @@ class Connection(FleetMessage):
     at_s: float = Field(description="sender's wall clock, Unix seconds")
 
 
+class DeliveryReport(FleetMessage):
+    """Navigation's report on the robot's order (``DeliveryUpdate``), numbered per robot so
+    the dispatcher sees a gap or a repeat after a reconnect."""
+
+    seq: int = Field(ge=0)
+    boot_s: float
+    """The run of the robot's software that made it (``RobotState.boot_s``)."""
+    order_id: str = Field(min_length=1, max_length=64)
+    status: OrderStatus
+    detail: str = Field("", max_length=500)
+    ready_for_cup: bool = False
+    problem: DeliveryProblem | None = None
+
+
 class RobotState(FleetMessage):
     """A robot's report of itself, a few times a second."""
 
@@ -110,20 +124,10 @@ class RobotState(FleetMessage):
     order_id: str | None = None
     """The order it works on, if any."""
     estop: bool = False
-
-
-class DeliveryReport(FleetMessage):
-    """Navigation's report on the robot's order (``DeliveryUpdate``), numbered per robot so
-    the dispatcher sees a gap or a repeat after a reconnect."""
-
-    seq: int = Field(ge=0)
-    boot_s: float
-    """The run of the robot's software that made it (``RobotState.boot_s``)."""
-    order_id: str = Field(min_length=1, max_length=64)
-    status: OrderStatus
-    detail: str = Field("", max_length=500)
-    ready_for_cup: bool = False
-    problem: DeliveryProblem | None = None
+    latest_report: DeliveryReport | None = None
+    """The last delivery report of this run, said again with every state: one sent while
+    the dispatcher was not subscribed (both reconnecting to a restarted broker, which keeps
+    no sessions) reached nobody, and this copy still does."""
 
 
 class Assignment(FleetMessage):

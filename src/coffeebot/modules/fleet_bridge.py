@@ -185,6 +185,7 @@ class FleetBridge(Module):
         self.boot_s = time.time()
         self._reports = 0
         """Delivery reports made (the next one's number)."""
+        self._latest_report: DeliveryReport | None = None
         self._state_seq = itertools.count()
         self._order: str | None = None
         self._cancelled: set[str] = set()
@@ -280,17 +281,16 @@ class FleetBridge(Module):
     def _report(self, update: DeliveryUpdate) -> None:
         if update.status.final and update.order_id == self._order:
             self._order = None
-        self._outbox.append(
-            DeliveryReport(
-                seq=self._reports,
-                boot_s=self.boot_s,
-                order_id=update.order_id,
-                status=update.status,
-                detail=update.detail[:500],
-                ready_for_cup=update.ready_for_cup,
-                problem=update.problem,
-            )
+        self._latest_report = DeliveryReport(
+            seq=self._reports,
+            boot_s=self.boot_s,
+            order_id=update.order_id,
+            status=update.status,
+            detail=update.detail[:500],
+            ready_for_cup=update.ready_for_cup,
+            problem=update.problem,
         )
+        self._outbox.append(self._latest_report)
         self._reports += 1
         self._sent.set()
 
@@ -337,6 +337,7 @@ class FleetBridge(Module):
             unwell=unwell[:32],
             order_id=self._order,
             estop=estop is not None and estop.msg.engaged,
+            latest_report=self._latest_report,
         )
 
     @staticmethod
