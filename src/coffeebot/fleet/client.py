@@ -15,6 +15,7 @@ from urllib.parse import urlparse
 
 import aiomqtt
 
+from coffeebot.fleet.cancellable import CancellableClient
 from coffeebot.fleet.in_step import MessagesInStep, SteppedClient
 from coffeebot.fleet.mosquitto import Credentials
 from coffeebot.fleet.protocol import Connection, ConnectionState, encode
@@ -82,4 +83,4 @@ def mqtt_client(
     }
     if in_step is not None:
         return SteppedClient(in_step, host, port, **options)
-    return aiomqtt.Client(host, port, **options)
+    return CancellableClient(host, port, **options)

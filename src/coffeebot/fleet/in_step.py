@@ -31,10 +31,10 @@ from collections.abc import Callable
 from types import TracebackType
 from typing import Any, Self
 
-import aiomqtt
 import paho.mqtt.client as paho
 
 from coffeebot.clock import Clock, SteppedClock
+from coffeebot.fleet.cancellable import CancellableClient
 from coffeebot.fleet.protocol import ROOT
 
 log = logging.getLogger(__name__)
@@ -119,7 +119,7 @@ def messages_in_step(clock: Clock) -> MessagesInStep | None:
     return stepped
 
 
-class SteppedClient(aiomqtt.Client):
+class SteppedClient(CancellableClient):
     """An MQTT connection whose traffic :class:`MessagesInStep` can wait for."""
 
     def __init__(self, in_step: MessagesInStep, *args: Any, **kwargs: Any) -> None:

@@ -1,0 +1,69 @@
+"""A cancellation that lands as the broker answers ends the task (Python 3.11's
+``asyncio.wait_for``, which aiomqtt waits with, drops it)."""
+
+from __future__ import annotations
+
+import asyncio
+
+import aiomqtt
+import pytest
+
+from coffeebot.fleet.cancellable import CancellableClient
+
+
+async def _answered_as_cancelled(client: aiomqtt.Client) -> BaseException | str:
+    """What a task waiting for the broker's answer ends with when the answer and its
+    cancellation come in the same turn of the event loop (not connected: only the wait)."""
+    answer: asyncio.Future[str] = asyncio.get_running_loop().create_future()
+
+    async def waiting() -> str:
+        return await client._wait_for(answer, timeout=None)
+
+    task = asyncio.create_task(waiting())
+    await asyncio.sleep(0)
+    answer.set_result("acknowledged")
+    task.cancel()
+    try:
+        return await task
+    except asyncio.CancelledError as exc:
+        return exc
+
+
+async def test_a_cancellation_that_comes_with_the_answer_ends_the_task() -> None:
+    ended = await _answered_as_cancelled(CancellableClient("localhost", 1883))
+    assert isinstance(ended, asyncio.CancelledError)
+
+
+async def test_a_task_group_waiting_on_the_broker_ends_when_cancelled() -> None:
+    """The hang it mends: the group's other task sees the cancellation, the one waiting on
+    the broker must too, or the group waits for it for ever."""
+    client = CancellableClient("localhost", 1883)
+    answer: asyncio.Future[str] = asyncio.get_running_loop().create_future()
+    waiting_on_broker = asyncio.Event()
+
+    async def publishes_for_ever() -> None:
+        while True:
+            waiting_on_broker.set()
+            await client._wait_for(answer, timeout=None)
+            await asyncio.Event().wait()  # nothing more to publish
+
+    async def bridge() -> None:
+        async with asyncio.TaskGroup() as group:
+            group.create_task(publishes_for_ever())
+            await asyncio.Event().wait()
+
+    task = asyncio.create_task(bridge())
+    await waiting_on_broker.wait()
+    answer.set_result("acknowledged")
+    task.cancel()
+    done, _ = await asyncio.wait({task}, timeout=5.0)
+    assert task in done, "the group still waits for its task"
+    with pytest.raises(asyncio.CancelledError):
+        task.result()
+
+
+async def test_a_timeout_is_an_mqtt_error_as_aiomqtt_says() -> None:
+    client = CancellableClient("localhost", 1883)
+    never: asyncio.Future[str] = asyncio.get_running_loop().create_future()
+    with pytest.raises(aiomqtt.MqttError, match="timed out"):
+        await client._wait_for(never, timeout=0.01)
