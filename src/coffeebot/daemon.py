@@ -32,8 +32,9 @@ CPU_WINDOW_S = 5.0
 """The machine's seconds over which each module's share of a core is taken."""
 CANCEL_REPEAT_S = 1.0
 """How long a cancelled module has to end before it is cancelled again. A cancellation can
-be lost: Python 3.11's ``asyncio.wait_for`` (which aiomqtt awaits its connection with) drops
-one that lands as the awaited future completes, and the module then runs on."""
+be lost: Python 3.11's ``asyncio.wait_for`` drops one that lands as the awaited future
+completes, and the module then runs on. (The fleet's MQTT client no longer waits with it,
+``fleet/cancellable.py``: a task of a module's ``TaskGroup`` is cancelled only once.)"""
 
 
 class ModuleState:
