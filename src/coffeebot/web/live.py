@@ -206,5 +206,8 @@ async def send_event(
 
 
 async def sleep_unless_closed(changes: Changes, seconds: float) -> None:
+    """``asyncio.timeout``, not 3.11's ``wait_for``, which may drop the server's cancel
+    (``coffeebot/fleet/cancellable.py``)."""
     with contextlib.suppress(TimeoutError):
-        await asyncio.wait_for(changes.closed.wait(), seconds)
+        async with asyncio.timeout(seconds):
+            await changes.closed.wait()
