@@ -282,6 +282,47 @@ async def test_a_report_that_reached_nobody_is_taken_from_the_next_state_report(
     assert harness.actions("r1") == [], "nothing to drop"
 
 
+async def test_a_restarted_dispatcher_catches_up_with_what_its_robots_did_meanwhile(
+    harness: Harness,
+) -> None:
+    """Its book starts empty; its store is behind: one robot arrived, one failed its order,
+    one had long delivered (the latest report each state repeats says so)."""
+    done = {}
+    for robot in ("r3", "r1", "r2"):  # one at a time, so each is the only free robot
+        await harness.robot_reports(robot)
+        placed = await harness.assigned_and_taken(robot)
+        await harness.dispatcher.on_delivery(
+            robot, harness.report(robot, placed.id, OrderStatus.ON_THE_WAY)
+        )
+        done[robot] = placed
+    for status in (OrderStatus.ARRIVED, OrderStatus.DELIVERED):
+        await harness.dispatcher.on_delivery("r3", harness.report("r3", done["r3"].id, status))
+    delivered = DeliveryReport(
+        seq=harness.made["r3"] - 1,
+        boot_s=BOOT_S,
+        order_id=done["r3"].id,
+        status=OrderStatus.DELIVERED,
+    )
+    restarted = Harness(harness.dispatcher.store)
+    restarted.made, restarted.seq = harness.made, harness.seq
+    arrived = restarted.report("r1", done["r1"].id, OrderStatus.ARRIVED)
+    failed = restarted.report("r2", done["r2"].id, OrderStatus.FAILED)
+    await restarted.robot_reports("r1", done["r1"].id, latest=arrived)
+    await restarted.robot_reports("r2", None, latest=failed)
+    await restarted.robot_reports("r3", None, latest=delivered)
+    status = {r: (await restarted.dispatcher.get(o.id)).status for r, o in done.items()}
+    assert status == {
+        "r1": OrderStatus.ARRIVED,
+        "r2": OrderStatus.FAILED,
+        "r3": OrderStatus.DELIVERED,
+    }
+    assert restarted.dispatcher.operator("pickup_confirmed", done["r1"].id), "r1's, again"
+    assert restarted.dispatcher.counters.refused_reports == 0
+    assert [a.kind for r in ("r1", "r2", "r3") for a in restarted.actions(r)] == [
+        "pickup_confirmed"
+    ]
+
+
 async def test_a_restarted_robot_numbers_its_reports_afresh_and_they_apply(
     harness: Harness,
 ) -> None:

@@ -26,7 +26,9 @@ The rules, and why:
   the robot does not have (any more) is refused and the robot is told to drop it. The
   latest report also comes with every state report: one sent while the dispatcher was not
   subscribed (both reconnecting to a restarted broker) reached nobody, and the latest
-  overtakes the earlier ones it skips. A state report's word on the
+  overtakes the earlier ones it skips. A restarted dispatcher applies each robot's latest
+  report too, its store perhaps behind what the robot did meanwhile, and takes the robot's
+  order from the store (whose it is) into its empty book. A state report's word on the
   robot's order is taken only once every delivery report made before it has been applied:
   the two travel apart, and a robot that has just reported its cup delivered says it
   carries nothing, perhaps before the report arrives. Nothing is served twice: an order
@@ -200,7 +202,12 @@ class Dispatcher:
 
     async def on_state(self, robot: str, state: RobotState) -> None:
         record = self.robot(robot)
-        if not self._current_run(record, state.boot_s, state.reports):
+        latest = state.latest_report
+        # Heard first (the dispatcher restarted): every report before the latest is taken
+        # as known, the latest is applied, since the store may not have it.
+        if not self._current_run(
+            record, state.boot_s, state.reports if latest is None else latest.seq
+        ):
             return
         if (
             record.state is not None
@@ -212,7 +219,6 @@ class Dispatcher:
         record.state_at_s = self.now()
         record.connection = ConnectionState.ONLINE
         self._heard(record)
-        latest = state.latest_report
         if latest is not None and latest.seq > record.last_report:
             await self.on_delivery(robot, latest)  # its own copy reached nobody
         await self._reconcile(record)
@@ -246,16 +252,23 @@ class Dispatcher:
             return  # a repeat after a reconnect
         record.last_report = report.seq
         if report.order_id != record.order_id:
-            self.counters.refused_reports += 1
-            log.warning(
-                "robot %s reports on order %s, which is not its: told to drop it",
-                robot,
-                report.order_id,
-            )
             order = await self._get(report.order_id)
-            if order is not None and not order.status.final:
-                self._action(robot, "cancel", report.order_id)
-            return
+            if record.order_id is None and order is not None and order.robot == robot:
+                # The dispatcher restarted: its store says whose the order is.
+                if not order.status.final:
+                    record.order_id = order.id  # the book catches up
+                if order.status is report.status:
+                    return  # the store has it already
+            if report.order_id != record.order_id:
+                self.counters.refused_reports += 1
+                log.warning(
+                    "robot %s reports on order %s, which is not its: told to drop it",
+                    robot,
+                    report.order_id,
+                )
+                if order is not None and not order.status.final:
+                    self._action(robot, "cancel", report.order_id)
+                return
         allowed = _REPORTABLE_FROM.get(report.status, ())
         order = await self.store.transition(report.order_id, report.status, report.detail, allowed)
         if order is None:
