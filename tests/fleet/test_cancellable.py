@@ -9,6 +9,8 @@ import aiomqtt
 import pytest
 
 from coffeebot.fleet.cancellable import CancellableClient
+from coffeebot.fleet.mosquitto import Mosquitto
+from coffeebot.fleet.protocol import robot_topic
 
 
 async def _answered_as_cancelled(client: aiomqtt.Client) -> BaseException | str:
@@ -67,3 +69,33 @@ async def test_a_timeout_is_an_mqtt_error_as_aiomqtt_says() -> None:
     never: asyncio.Future[str] = asyncio.get_running_loop().create_future()
     with pytest.raises(aiomqtt.MqttError, match="timed out"):
         await client._wait_for(never, timeout=0.01)
+
+
+async def test_aiomqtt_waits_for_the_broker_through_the_mended_wait(
+    broker: Mosquitto, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The mend replaces a private method of aiomqtt's: an aiomqtt that no longer waits
+    through it (renamed in a release) fails here, not in a hang under load."""
+    waits: list[float | None] = []
+    mended = CancellableClient._wait_for
+
+    async def counted(self: CancellableClient, fut: object, timeout: float | None) -> object:
+        waits.append(timeout)
+        return await mended(self, fut, timeout)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(CancellableClient, "_wait_for", counted)
+    login = broker.credentials["robot-1"]
+    client = CancellableClient(
+        broker.address.host,
+        broker.address.port,
+        username=login.username,
+        password=login.password,
+        identifier="test-cancellable",
+    )
+    async with client:
+        connected = len(waits)
+        await client.publish(robot_topic("robot-1", "state"), b"{}", qos=1)
+        published = len(waits)
+    assert connected >= 1, "the connection waited through it"
+    assert published == connected + 1, "the QoS 1 acknowledgement waited through it"
+    assert len(waits) == published + 1, "the disconnection waited through it"
