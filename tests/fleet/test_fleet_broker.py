@@ -134,30 +134,45 @@ class Fleet:
     def __init__(self, broker: Mosquitto, store: OrderStore, web: bool = False) -> None:
         """``web``: the dispatcher serves its web UI on a free port."""
         self.broker = broker
-        clock = MonotonicClock()
+        self.store = store
+        self.web = web
+        clock = self.clock = MonotonicClock()
+        self.dispatcher: DispatcherRuntime = self._dispatcher()
+        self.robots: dict[str, Daemon] = {}
+        self.bridges: dict[str, FleetBridge] = {}
+        self.navigation: dict[str, StandInNavigation] = {}
+        for index, robot in enumerate(ROBOTS):
+            board = Board(ALL_TOPICS, clock=clock)
+            bridge = FleetBridge(robot_config(broker, robot), broker.credentials[robot])
+            self.bridges[robot] = bridge
+            standing = StandInNavigation(at=(42000 - 6000 * index, -300))
+            self.navigation[robot] = standing
+            self.robots[robot] = Daemon(board, [bridge, standing])
+
+    def _dispatcher(self) -> DispatcherRuntime:
         config = BOARD.model_copy(
             update={
                 "fleet": FleetConfig(dispatch=DISPATCH),
                 "web": BOARD.web.model_copy(update={"port": 0}),
             }
         )
-        self.dispatcher: DispatcherRuntime = dispatcher_runtime(
+        return dispatcher_runtime(
             config,
             PLAN,
-            store,
-            broker.address.url,
-            broker.credentials["dispatcher"],
-            clock,
-            web=web,
+            self.store,
+            self.broker.address.url,
+            self.broker.credentials["dispatcher"],
+            self.clock,
+            web=self.web,
         )
-        self.robots: dict[str, Daemon] = {}
-        self.bridges: dict[str, FleetBridge] = {}
-        for index, robot in enumerate(ROBOTS):
-            board = Board(ALL_TOPICS, clock=clock)
-            bridge = FleetBridge(robot_config(broker, robot), broker.credentials[robot])
-            self.bridges[robot] = bridge
-            standing = StandInNavigation(at=(42000 - 6000 * index, -300))
-            self.robots[robot] = Daemon(board, [bridge, standing])
+
+    async def restart_dispatcher(self, meanwhile: Callable[[], Awaitable[None]]) -> None:
+        """The dispatcher's software stops, ``meanwhile`` happens, and it starts again on
+        the same store with nothing else of what it knew."""
+        await self.dispatcher.daemon.shutdown()
+        await meanwhile()
+        self.dispatcher = self._dispatcher()
+        await self.dispatcher.daemon.start()
 
     async def start(self) -> None:
         await self.dispatcher.daemon.start()
@@ -402,6 +417,31 @@ async def test_a_robot_killed_mid_delivery_fails_its_order_with_the_reason(
         state.task.cancel()
     failed = await fleet.until_status(placed.id, OrderStatus.FAILED)
     assert f"{order.robot} stopped reporting" in failed.detail
+
+
+async def test_a_restarted_dispatcher_learns_what_a_robot_did_while_it_was_down(
+    fleet: Fleet,
+) -> None:
+    for navigation in fleet.navigation.values():
+        navigation.drive_s = 2.0
+    placed = await fleet.order()
+    await fleet.until(lambda: _ready(fleet, placed.id), "ready for the cup")
+    fleet.act("cup_loaded", placed.id)
+    robot = (await fleet.until_status(placed.id, OrderStatus.ON_THE_WAY)).robot
+    assert robot is not None
+    board = fleet.robots[robot].board
+
+    async def arrives() -> None:
+        async def arrived() -> bool:
+            latest = board.latest(DELIVERY_STATUS)
+            return latest is not None and latest.msg.status is OrderStatus.ARRIVED
+
+        await fleet.until(arrived, f"{robot} arrives while the dispatcher is down")
+
+    await fleet.restart_dispatcher(arrives)
+    await fleet.until_status(placed.id, OrderStatus.ARRIVED)
+    fleet.act("pickup_confirmed", placed.id)
+    await fleet.until_status(placed.id, OrderStatus.DELIVERED)
 
 
 async def test_a_shared_place_is_one_robots_and_passes_to_the_other_when_given_back(
