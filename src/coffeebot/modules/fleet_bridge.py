@@ -183,8 +183,6 @@ class FleetBridge(Module):
         self._outbox: deque[DeliveryReport] = deque()
         self._sent = asyncio.Event()
         self.boot_s = time.time()
-        self._reports = 0
-        """Delivery reports made (the next one's number)."""
         self._latest_report: DeliveryReport | None = None
         self._state_seq = itertools.count()
         self._order: str | None = None
@@ -278,6 +276,11 @@ class FleetBridge(Module):
 
     # --- out ----------------------------------------------------------------------------------
 
+    @property
+    def _reports(self) -> int:
+        """Delivery reports made in this run (the next one's number)."""
+        return 0 if self._latest_report is None else self._latest_report.seq + 1
+
     def _report(self, update: DeliveryUpdate) -> None:
         if update.status.final and update.order_id == self._order:
             self._order = None
@@ -291,7 +294,6 @@ class FleetBridge(Module):
             problem=update.problem,
         )
         self._outbox.append(self._latest_report)
-        self._reports += 1
         self._sent.set()
 
     async def _send_reports(self, client: aiomqtt.Client) -> None:
