@@ -233,8 +233,7 @@ class Dispatcher:
         if theirs == ours or (theirs is None and record.assignment is not None):
             return
         if theirs is not None and theirs != ours:
-            order = await self._get(theirs)
-            if order is not None and order.robot == record.robot and not order.status.final:
+            if self._store_gives(record, await self._get(theirs)):
                 record.order_id = theirs  # the dispatcher restarted: its book catches up
                 return
             self._action(record.robot, "cancel", theirs)  # not its order (any more)
@@ -242,6 +241,12 @@ class Dispatcher:
         # It carries nothing, the book says it does: the robot restarted and lost it.
         assert ours is not None
         await self._lost_order(record, ours, f"robot {record.robot} restarted without it")
+
+    @staticmethod
+    def _store_gives(record: RobotRecord, order: Order | None) -> bool:
+        """Whether the store gives the robot ``order``, not yet ended: what a restarted
+        dispatcher's empty book takes back from it."""
+        return order is not None and order.robot == record.robot and not order.status.final
 
     async def on_delivery(self, robot: str, report: DeliveryReport) -> None:
         record = self.robot(robot)
@@ -255,7 +260,7 @@ class Dispatcher:
             order = await self._get(report.order_id)
             if record.order_id is None and order is not None and order.robot == robot:
                 # The dispatcher restarted: its store says whose the order is.
-                if not order.status.final:
+                if self._store_gives(record, order):
                     record.order_id = order.id  # the book catches up
                 if order.status is report.status:
                     return  # the store has it already
