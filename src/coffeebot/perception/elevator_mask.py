@@ -35,16 +35,12 @@ import numpy as np
 
 from coffeebot.config import TofSensorConfig
 from coffeebot.floorplan import Floor
-from coffeebot.messages import RangeScan, ReadingStatus
-from coffeebot.perception.geometry import sensor_origins, spread_rad
-from coffeebot.perception.walls import segment_ranges
+from coffeebot.messages import RangeScan
+from coffeebot.perception.cones import cones_meeting
 
 ALONG_HALLWAY_DEG = 45.0
 """Heading this close to the hallway's, either way, only the cones on the car's side can
 see into it, and the mask leaves those out; further off, most cones can."""
-CONE_RAYS = 9
-"""Rays across each widened cone: at 1.5 m they lie at most ~100 mm apart, a tenth of a
-doorway."""
 
 
 class ElevatorMask:
@@ -147,25 +143,12 @@ class ElevatorMask:
             near &= np.array([door not in shut for door in self._doors[floor.level]], dtype=bool)
         if not near.any():
             return frozenset()
-        mouths = mouths[near]
-        ids, mounts, reach = [], [], []
-        for reading in scan.readings:
-            mount = self.sensors.get(reading.sensor)
-            if mount is None:
-                continue
-            if reading.status is ReadingStatus.VALID and reading.distance_mm is not None:
-                reach.append(reading.distance_mm + self.margin_mm)
-            else:
-                reach.append(self.reach_mm)
-            ids.append(reading.sensor)
-            mounts.append(mount)
-        if not ids:
-            return frozenset()
-        placed = sensor_origins(*pose, mounts)
-        origins = np.array([(x, y) for x, y, _ in placed])
-        spread = [spread_rad(mount.fov_deg / 2 + heading_margin_deg, CONE_RAYS) for mount in mounts]
-        angles = np.stack(
-            [math.radians(look) + rays for (_, _, look), rays in zip(placed, spread, strict=True)]
+        return cones_meeting(
+            self.sensors,
+            scan,
+            pose,
+            heading_margin_deg,
+            mouths[near],
+            self.margin_mm,
+            self.reach_mm,
         )
-        ranges = segment_ranges(mouths, origins, angles, np.array(reach)).min(axis=1)
-        return frozenset(i for i, r in zip(ids, ranges, strict=True) if math.isfinite(r))
