@@ -607,6 +607,14 @@ class ParticleFilterConfig(Section):
         "doorway, widened by this each side, are not weighed; nor is any reading with the "
         "estimate this close to the doorway's wall line",
     )
+    robot_margin_mm: float = Field(
+        150.0,
+        ge=0,
+        le=DISTANCE_MM,
+        description="readings whose cone may have met another robot of the fleet standing "
+        "still, its outline grown by this each side, are not weighed: the plan has no robots "
+        "(perception/robot_mask.py)",
+    )
     # Other sources as likelihoods.
     uwb_outlier_probability: float = Field(
         0.05, ge=0, lt=1, description="share of UWB fixes that are multipath outliers"

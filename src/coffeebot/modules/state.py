@@ -21,6 +21,7 @@ from coffeebot.messages import (
     ORDER_DISPATCH,
     PARTICLES,
     RANGE_SCAN,
+    TRAFFIC,
     UWB_FIX,
     PoseEstimate,
 )
@@ -45,6 +46,7 @@ class StateModule(Module):
         MOVE_INSTRUCTION,
         ORDER_DISPATCH,
         DELIVERY_STATUS,
+        TRAFFIC,
     )
     outputs = (CURRENT_STATE, PARTICLES)
 
@@ -56,7 +58,11 @@ class StateModule(Module):
         start: PoseEstimate | None = None,
     ) -> None:
         self.estimator = StateEstimator(
-            plan, config.motor, config.state, fusion or make_fusion(config, plan)
+            plan,
+            config.motor,
+            config.state,
+            fusion or make_fusion(config, plan),
+            body=config.geometry,
         )
         self.cloud = config.state.particles
         self._cloud_at: float | None = None
@@ -94,6 +100,7 @@ class StateModule(Module):
             (MOVE_INSTRUCTION, lambda m, _: e.on_instruction(m)),
             (ORDER_DISPATCH, lambda m, _: e.on_dispatch(m)),
             (DELIVERY_STATUS, lambda m, _: e.on_delivery(m)),
+            (TRAFFIC, e.on_traffic),
         ]
         # Subscribe to everything before the first await, so nothing published meanwhile is lost.
         subscriptions = [(ctx.board.subscribe(topic), apply) for topic, apply in handlers]

@@ -17,6 +17,7 @@ Two pieces, kept apart so the fusion method can be swapped without touching odom
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -134,9 +135,16 @@ class PoseFusion(Protocol):
         """3x3 covariance of (x mm, y mm, heading deg)."""
         ...
 
-    def update_ranges(self, scan: RangeScan, shut_doors: frozenset[str] = frozenset()) -> bool:
+    def update_ranges(
+        self,
+        scan: RangeScan,
+        shut_doors: frozenset[str] = frozenset(),
+        others: Sequence[np.ndarray] = (),
+    ) -> bool:
         """A ToF scan against the floor plan (False: not used); ``shut_doors``: the elevator
-        doors on this floor known shut, the plan's leaf and nothing behind it."""
+        doors on this floor known shut, the plan's leaf and nothing behind it; ``others``:
+        the outlines (4, 4: sides) of the fleet's other robots standing on this floor, grown
+        by ``[state.particles] robot_margin_mm``, which the plan does not have."""
         ...
 
     def change_floor(self, level: int) -> None:
@@ -264,7 +272,12 @@ class EkfPoseFusion:
         scale = np.array([1.0, 1.0, math.degrees(1.0)])
         return self.P * np.outer(scale, scale)
 
-    def update_ranges(self, scan: RangeScan, shut_doors: frozenset[str] = frozenset()) -> bool:
+    def update_ranges(
+        self,
+        scan: RangeScan,
+        shut_doors: frozenset[str] = frozenset(),
+        others: Sequence[np.ndarray] = (),
+    ) -> bool:
         """The Kalman filter sees the walls through the angle and door modules instead."""
         return False
 

@@ -26,6 +26,7 @@ spread about it, so a cloud strung along a featureless hallway, or split in two,
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -42,6 +43,7 @@ from coffeebot.perception.resampling import (
     effective_sample_size,
     low_variance_indices,
 )
+from coffeebot.perception.robot_mask import RobotMask
 
 MODE_BIN_MM = 1000.0
 MODE_BIN_RAD = math.radians(45.0)
@@ -86,6 +88,7 @@ class ParticlePoseFusion:
             self.cfg.elevator_blind_mm,
             float(tof.max_range_mm),
         )
+        self.robot_mask = RobotMask(tof.sensors, self.cfg.robot_margin_mm)
         self.clearance_mm = clearance_mm
         self.rng, self._draw_rng = (
             np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(2)
@@ -304,7 +307,12 @@ class ParticlePoseFusion:
         """The weighted mean likelihood ratio: 1 when every particle explains it perfectly."""
         return float(np.dot(self.weights, np.exp(log_fit)))
 
-    def update_ranges(self, scan: RangeScan, shut_doors: frozenset[str] = frozenset()) -> bool:
+    def update_ranges(
+        self,
+        scan: RangeScan,
+        shut_doors: frozenset[str] = frozenset(),
+        others: Sequence[np.ndarray] = (),
+    ) -> bool:
         if not self.initialised:
             return False
         cfg = self.cfg
@@ -318,8 +326,10 @@ class ParticlePoseFusion:
         if self.elevator_mask.blind(self.floor, x, y, heading, shut_doors):
             return False
         heading_margin = min(MAX_HEADING_MARGIN_DEG, 3.0 * self.sigmas()[2])
-        masked = self.elevator_mask.masked(
-            self.floor, scan, (x, y, heading), heading_margin, shut_doors
+        robots = self.robot_mask.masked(scan, (x, y, heading), heading_margin, others)
+        masked = (
+            self.elevator_mask.masked(self.floor, scan, (x, y, heading), heading_margin, shut_doors)
+            | robots
         )
         if masked:
             kept = [r for r in scan.readings if r.sensor not in masked]
@@ -330,7 +340,9 @@ class ParticlePoseFusion:
             return False
         self._scan_travel_mm = self._scan_turn_rad = 0.0
         self._scan_due = False
-        self._weigh(result.log_likelihood, ("ranges", self._fit(result.log_fit)))
+        # A scan that saw another robot says little of whether the filter is lost.
+        fit = None if robots else ("ranges", self._fit(result.log_fit))
+        self._weigh(result.log_likelihood, fit)
         return True
 
     def update_position(self, x_mm: float, y_mm: float, sigma_mm: float) -> bool:

@@ -10,7 +10,9 @@ from __future__ import annotations
 import math
 from collections import deque
 
-from coffeebot.config import MotorConfig, RobotConfig, StateConfig
+import numpy as np
+
+from coffeebot.config import GeometryConfig, MotorConfig, RobotConfig, StateConfig
 from coffeebot.floorplan import FloorPlan
 from coffeebot.messages import (
     AngleEstimate,
@@ -25,8 +27,10 @@ from coffeebot.messages import (
     ParticleCloud,
     PoseEstimate,
     RangeScan,
+    Traffic,
     UwbFix,
 )
+from coffeebot.navigation.others import standing_outlines
 from coffeebot.perception.fusion import EkfPoseFusion, Odometer, OdometryStep, PoseFusion
 from coffeebot.perception.geometry import TravelFrame
 from coffeebot.perception.particles import ParticlePoseFusion
@@ -55,8 +59,12 @@ class StateEstimator:
         motor: MotorConfig,
         cfg: StateConfig,
         fusion: PoseFusion | None = None,
+        body: GeometryConfig | None = None,
     ) -> None:
+        """``body``: this robot's, and so the fleet's other robots' (all one model; None:
+        the board file's default)."""
         self.plan = plan
+        self.body = body or GeometryConfig()
         self.cfg = cfg
         self.odometer = Odometer(motor, cfg)
         self.fusion: PoseFusion = fusion or EkfPoseFusion(cfg)
@@ -78,6 +86,8 @@ class StateEstimator:
         self.stamps: dict[str, float] = {}
         self._shut_doors: tuple[dict[int, frozenset[str]], float] | None = None
         """The elevator doors shut per floor by the latest state, and when it came."""
+        self._traffic: tuple[Traffic, float] | None = None
+        """Where the fleet's other robots are, and when the dispatcher said so."""
 
     def place(self, x_mm: float, y_mm: float, heading_deg: float, floor: int) -> None:
         """A known start (the dock in the tea room) or a known arrival (out of the elevator)."""
@@ -171,8 +181,31 @@ class StateEstimator:
             return frozenset()
         return shut.get(self.floor, frozenset())
 
+    def on_traffic(self, traffic: Traffic, now: float) -> bool:
+        """Where the fleet's other robots are: the next scans leave out what they explain,
+        and nothing changes until then."""
+        self._traffic = (traffic, now)
+        return False
+
+    def other_robots(self, now: float) -> list[np.ndarray]:
+        """The outlines of the fleet's other robots standing on this floor at ``now``,
+        grown by ``[state.particles] robot_margin_mm`` (none without a fleet)."""
+        if self._traffic is None:
+            return []
+        traffic, at = self._traffic
+        grow = 2.0 * self.cfg.particles.robot_margin_mm
+        return standing_outlines(
+            traffic.robots,
+            self.floor,
+            self.body.length_mm + grow,
+            self.body.width_mm + grow,
+            age_s=max(0.0, now - at),
+        )
+
     def on_scan(self, scan: RangeScan, now: float) -> bool:
-        used = self.fusion.update_ranges(scan, self.shut_elevator_doors(now))
+        used = self.fusion.update_ranges(
+            scan, self.shut_elevator_doors(now), self.other_robots(now)
+        )
         if used:
             self.stamps["ranges"] = now
         return used
