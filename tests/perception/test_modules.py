@@ -17,9 +17,12 @@ from coffeebot.messages import (
     CURRENT_STATE,
     ODOMETRY,
     RANGE_SCAN,
+    TRAFFIC,
     UWB_FIX,
     Odometry,
+    OtherRobot,
     SafetyState,
+    Traffic,
     UwbFix,
 )
 from coffeebot.modules.angle import AngleModule
@@ -91,3 +94,26 @@ async def test_state_module_fuses_odometry_and_uwb(fusion: str) -> None:
     assert moved > 100  # along its (unknown) heading
     assert latest.msg.pose.speed_mm_s > 900
     assert set(latest.msg.sources) == {"uwb", "odometry"}
+
+
+async def test_state_module_follows_the_fleets_traffic_without_publishing_for_it() -> None:
+    board = Board(ALL_TOPICS)
+    module = StateModule(robot(), PLAN)
+    daemon = Daemon(board, [module])
+    await daemon.start()
+    parked = OtherRobot(
+        robot="robot-2",
+        floor=2,
+        x_mm=43100.0,
+        y_mm=-3300.0,
+        heading_deg=90.0,
+        moving=False,
+        reported_at_s=0.0,
+        age_s=0.1,
+    )
+    sent = board.publish(TRAFFIC, Traffic(robots=[parked]))
+    await asyncio.sleep(0.01)
+    await daemon.shutdown()
+    # The next scans leave out what that robot explains; nothing new to publish until then.
+    assert len(module.estimator.other_robots(sent.stamp)) == 1
+    assert board.latest(CURRENT_STATE) is None
