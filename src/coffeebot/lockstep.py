@@ -23,14 +23,30 @@ import itertools
 import logging
 import threading
 import time
-from collections.abc import Awaitable, Callable
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Protocol
 
 log = logging.getLogger(__name__)
 
 SLOW_SETTLE_S = 10.0
 """A worker still busy after this many seconds of the machine's time is logged (a blocking
 call that waits for something no step brings would stop the run)."""
+
+
+class OutsideTraffic(Protocol):
+    """What the daemons send each other outside the process (a broker's messages,
+    :mod:`coffeebot.fleet.in_step`), held in step with the world."""
+
+    async def drain(self) -> bool:
+        """Wait until nothing is on its way and hand over what arrived; True if anything
+        was (the daemons may have something new to do)."""
+        ...
+
+    def let_through(self) -> bool:
+        """Hand over whatever is held back (the ledger is no longer engaged); True if
+        anything was."""
+        ...
 
 
 @dataclass(eq=False)
@@ -85,10 +101,9 @@ class Lockstep:
         self._finished: list[tuple[int, Callable[[], None]]] = []
         self._jobs = itertools.count()
         self.engaged = False
-        self.outside: list[Callable[[], Awaitable[bool]]] = []
-        """Drains of what the daemons sent outside the process (a broker's messages,
-        :mod:`coffeebot.fleet.in_step`): each waits until its traffic has arrived and says
-        whether there was any; the world steps once none has."""
+        self.outside: list[OutsideTraffic] = []
+        """What the daemons send outside the process: the world steps once none of it is
+        on its way or newly arrived."""
 
     def now(self) -> float:
         """The simulated clock's time."""
@@ -195,6 +210,9 @@ class Lockstep:
                 waiter.wakeup.notify()
         for _, deliver in sorted(held, key=lambda job: job[0]):
             deliver()
+        if not engaged:
+            for traffic in self.outside:
+                traffic.let_through()
 
     def settle(self) -> list[Callable[[], None]]:
         """Wait (blocking) until every worker is settled; the results that came in, in the

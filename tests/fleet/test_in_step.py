@@ -27,10 +27,10 @@ WIRE_DELAY_S = 0.03
 ROBOT = "robot-1"
 
 
-async def _pump(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+async def _pump(reader: asyncio.StreamReader, writer: asyncio.StreamWriter, delay_s: float) -> None:
     try:
         while chunk := await reader.read(65536):
-            await asyncio.sleep(WIRE_DELAY_S)
+            await asyncio.sleep(delay_s)
             writer.write(chunk)
             await writer.drain()
     except ConnectionError:
@@ -40,8 +40,9 @@ async def _pump(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> N
 
 
 @contextlib.asynccontextmanager
-async def slow_wire(broker: Mosquitto) -> AsyncIterator[str]:
-    """A loopback proxy to the broker that delays every chunk, in order; its URL."""
+async def slow_wire(broker: Mosquitto, delay_s: float = WIRE_DELAY_S) -> AsyncIterator[str]:
+    """A loopback proxy to the broker that delays every chunk by ``delay_s``, in order; its
+    URL."""
 
     handlers: list[asyncio.Task[object]] = []
 
@@ -51,7 +52,9 @@ async def slow_wire(broker: Mosquitto) -> AsyncIterator[str]:
             broker.address.host, broker.address.port
         )
         with contextlib.suppress(asyncio.CancelledError):  # the proxy closing
-            await asyncio.gather(_pump(reader, up_writer), _pump(up_reader, writer))
+            await asyncio.gather(
+                _pump(reader, up_writer, delay_s), _pump(up_reader, writer, delay_s)
+            )
 
     port = free_port()
     server = await asyncio.start_server(connect, "127.0.0.1", port)
@@ -152,6 +155,60 @@ async def test_without_the_wait_the_slow_wire_shows(broker: Mosquitto) -> None:
     seen = await exchange(broker, stepped=False, until_s=5.0, pace_s=0.001)
     assert seen, "the plain connections exchanged nothing"
     assert all(got > sent for _, sent, got in seen)
+
+
+async def arrival_order(broker: Mosquitto, delays_s: dict[str, float]) -> list[str]:
+    """Two robots each acknowledge three messages in the same step (QoS 1), each on a wire
+    of its own delay; the order they reach the dispatcher in."""
+    clock = SteppedClock(math.inf)
+    in_step = messages_in_step(clock)
+    got: list[str] = []
+    async with contextlib.AsyncExitStack() as stack:
+        dispatcher = await stack.enter_async_context(
+            mqtt_client(
+                broker.address.url,
+                broker.credentials[DISPATCHER_USER],
+                "dispatcher",
+                in_step=in_step,
+            )
+        )
+        await dispatcher.subscribe(robot_topic("+", "ack"), qos=1)
+        robots = {}
+        for robot, delay_s in delays_s.items():
+            url = await stack.enter_async_context(slow_wire(broker, delay_s))
+            robots[robot] = await stack.enter_async_context(
+                mqtt_client(url, broker.credentials[robot], robot, in_step=in_step)
+            )
+
+        async def receive() -> None:
+            async for message in dispatcher.messages:
+                assert isinstance(message.payload, bytes)
+                got.append(message.payload.decode())
+
+        async def send(robot: str) -> None:
+            await clock.sleep(0.1)
+            for i in range(3):
+                await robots[robot].publish(robot_topic(robot, "ack"), f"{robot} {i}", qos=1)
+
+        tasks = [asyncio.create_task(receive())]
+        tasks += [asyncio.create_task(send(robot)) for robot in delays_s]
+        await run_clock(clock, 0.3)
+        for task in tasks:
+            task.cancel()
+        await asyncio.gather(*tasks, return_exceptions=True)
+    return got
+
+
+@pytest.mark.asyncio
+async def test_what_arrives_in_one_step_comes_in_one_order_whatever_the_wire(
+    broker: Mosquitto,
+) -> None:
+    """Whichever robot's wire is the slow one, the dispatcher reads their messages of one
+    step in the same order: each publisher's together, in the order it sent them."""
+    first = await arrival_order(broker, {"robot-1": WIRE_DELAY_S, "robot-2": 0.0})
+    second = await arrival_order(broker, {"robot-1": 0.0, "robot-2": WIRE_DELAY_S})
+    assert first == [f"robot-{r} {i}" for r in (1, 2) for i in range(3)]
+    assert second == first
 
 
 @pytest.mark.asyncio

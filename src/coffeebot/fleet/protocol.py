@@ -331,6 +331,25 @@ def robot_topic(robot: str, kind: str) -> str:
 DISPATCHER_CONNECTION = f"{ROOT}/dispatcher/connection"
 
 
+def publisher(topic: str) -> str:
+    """Who publishes on ``topic`` in this layout: a robot's id, ``dispatcher`` or
+    ``cameras``; the topic itself for one outside it. One publisher's messages reach a
+    subscriber in the order it sent them, whatever the topic."""
+    if topic == DISPATCHER_CONNECTION:
+        return "dispatcher"
+    if topic == CAMERA_LAYER_TOPIC:
+        return "cameras"
+    try:
+        robot, kind = parse_robot_topic(topic)
+    except BadMessage:
+        return topic
+    if kind in DISPATCHER_TO_ROBOT:
+        return "dispatcher"
+    if kind in CAMERAS_TO_ROBOT:
+        return "cameras"
+    return robot
+
+
 class BadMessage(ValueError):
     """A message this version cannot take: the reason, naming topic and field."""
 

@@ -171,7 +171,7 @@ async def settle(loop: asyncio.AbstractEventLoop, lockstep: Lockstep) -> None:
         raise RuntimeError("the simulator steps time on asyncio's own event loop only")
     while True:
         await _settle_inside(ready, lockstep)
-        arrived = [await drain() for drain in lockstep.outside]
+        arrived = [await traffic.drain() for traffic in lockstep.outside]
         if not any(arrived):
             return
 
