@@ -73,6 +73,8 @@ class FleetRun:
     ended: str = ""
     motion_log: list[logging.LogRecord] = field(default_factory=list)
     """The robots' motion lines (state changes), as a handler tagging them sees them."""
+    stamps: list[tuple[float, float]] = field(default_factory=list)
+    """(simulated time, the order store's clock) when the orders were placed and at the end."""
 
 
 class Kept(logging.Handler):
@@ -111,6 +113,7 @@ async def drive(fleet: FleetSim, staff: StaffModule, run: FleetRun) -> FleetRun:
         assert clock.now() < ORDERS_AT_S, "the dispatcher has not heard from both robots"
         await clock.sleep(SAMPLE_S)
     await clock.sleep(ORDERS_AT_S - clock.now())
+    run.stamps.append((clock.now(), fleet.dispatcher.store.now()))
     await place("211")
     await place("213")
     started = time.monotonic()
@@ -128,6 +131,7 @@ async def drive(fleet: FleetSim, staff: StaffModule, run: FleetRun) -> FleetRun:
             run.ended = f"time limit at {clock.now():.0f} s"
             break
         await clock.sleep(SAMPLE_S)
+    run.stamps.append((clock.now(), fleet.dispatcher.store.now()))
     for sim in fleet.sims:
         run.contacts += [f"{sim.robot.name}: {c}" for c in sim.robot.collisions]
     return run
@@ -185,6 +189,15 @@ async def test_the_loading_spot_holds_one_robot_at_a_time(fleet_run: FleetRun) -
     assert max(visits) == 1, "both robots stood on the loading spot at once"
     loaded_by = {i for s in fleet_run.samples for i, p in enumerate(s.poses) if at_spot(p)}
     assert loaded_by == {0, 1}, "one of the robots never loaded"
+
+
+@pytest.mark.asyncio(loop_scope="module")
+async def test_orders_are_stamped_in_simulated_time(fleet_run: FleetRun) -> None:
+    """How long an order has waited is what joint assignment weighs: in a simulated fleet
+    it is simulated time, not the machine's, whose pace follows the machine's load."""
+    (sim_0, store_0), (sim_1, store_1) = fleet_run.stamps
+    assert sim_1 - sim_0 > 10.0
+    assert store_1 - store_0 == pytest.approx(sim_1 - sim_0, abs=1e-6)
 
 
 @pytest.mark.asyncio(loop_scope="module")

@@ -208,8 +208,14 @@ async def build_fleet_sim(
     with contextlib.ExitStack() as stack:
         if state_dir is None:
             state_dir = Path(stack.enter_context(run_directory()))
+        # Orders stamped in simulated time: how long one has waited is what joint
+        # assignment weighs, and the machine's clock runs at whatever pace it steps the fleet.
+        epoch = time.time() - clock.now()
         store = SimStore(
-            state_dir / "orders.sqlite3", busy_timeout_s=config.store.busy_timeout_s, clock=clock
+            state_dir / "orders.sqlite3",
+            lambda: epoch + clock.now(),
+            busy_timeout_s=config.store.busy_timeout_s,
+            clock=clock,
         )
         robots, sims = [], []
         for index, robot in enumerate(robot_ids(count)):
