@@ -10,10 +10,12 @@ spot in the tea room at the start. Orders arrive as a Poisson process at the cas
 rooms drawn from every office of both floors; the simulated staff load the cup 3 s after the
 robot is ready for it and the customer takes it 5 s after it arrived. The fleet dispatches
 by joint assignment (``linear_sum_assignment``, the default); at the rates of
-``--greedy-rates`` (the saturated one: there orders pile up and the two strategies choose
-differently) and fleet sizes of ``--greedy-robots``, each case runs a second time on the
-same arrivals with first-come greedy dispatch (``[fleet.dispatch] strategy``), for the
-comparison.
+``--greedy-rates`` (the saturated one: there orders pile up) and fleet sizes of
+``--greedy-robots``, each case runs a second time on the same arrivals with first-come
+greedy dispatch (``[fleet.dispatch] strategy``), for the comparison. The two choose
+differently only when several robots are free while several orders wait: each run counts
+those assignments (``choices``) and how many the other strategy would have paired
+differently (``choices_differing``).
 
 What it measures, on the simulated clock:
 - ``delivered_per_h``: cups handed over within the case's minutes (the joint run's; the greedy
@@ -318,6 +320,7 @@ async def drive(
         for sim in fleet.sims
         for c in sim.robot.collisions
     ]
+    dispatcher = orders.dispatcher
     accounts = fleet.dispatcher.daemon.cpu.accounts
     dispatcher_cpu_s = sum(a.seconds for a in accounts.values())
     return {
@@ -334,6 +337,8 @@ async def drive(
         "wait_p95_s": percentile(waits, 95),
         "elevator_rides": len(elevator),
         "places_held_pct": {p: round(100 * held_s[p] / end_s, 1) for p in sorted(held_s)},
+        "choices": 0 if dispatcher is None else dispatcher.counters.choices,
+        "choices_differing": 0 if dispatcher is None else dispatcher.counters.choices_differing,
         "elevator_wait_p95_s": percentile(elevator, 95),
         "contacts": contacts,
         "pose_error_mm_p95": percentile(
@@ -523,6 +528,11 @@ def print_table(result: dict[str, Any], runs: list[dict[str, Any]], elapsed: flo
         )
         held = ", ".join(f"{p} {pct} %" for p, pct in r["places_held_pct"].items())
         print(f"{_label(r)}: shared places held (share of the run): {held or 'none'}")
+        print(
+            f"{_label(r)}: assignments with several robots free and several orders waiting: "
+            f"{r['choices']}, of which the other strategy would have paired differently: "
+            f"{r['choices_differing']}"
+        )
         if r["camera_fixes"]:
             print(
                 f"{_label(r)}: {r['camera_fixes']} camera fixes, error p95 "

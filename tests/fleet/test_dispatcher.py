@@ -156,6 +156,24 @@ async def test_a_waiting_order_goes_to_a_free_robot_and_counts_once_acknowledged
     assert len(harness.assignments("r1")) == 2, "acknowledged: not sent again"
 
 
+async def test_only_several_free_robots_and_several_waiting_orders_make_a_choice(
+    harness: Harness,
+) -> None:
+    """The benchmark compares joint with greedy dispatch: the two can differ only where a
+    choice is made, and the dispatcher counts those."""
+    await harness.robot_reports("r1")
+    await harness.order()
+    await harness.dispatcher.tick()
+    assert harness.dispatcher.counters.choices == 0, "one robot, one order: no choice"
+    await harness.robot_reports("r2")
+    await harness.robot_reports("r3")
+    await harness.order("305")
+    await harness.order("205")
+    await harness.dispatcher.tick()
+    assert len(harness.assignments()) == 3
+    assert harness.dispatcher.counters.choices == 1
+
+
 async def test_a_refused_assignment_goes_back_to_the_queue_and_to_another_robot(
     harness: Harness,
 ) -> None:

@@ -45,12 +45,19 @@ from __future__ import annotations
 import itertools
 import logging
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Protocol
 
 from coffeebot.config import DispatchConfig
 from coffeebot.errors import OrderError, StoreError
-from coffeebot.fleet.assignment import STRATEGIES, FreeRobot, WaitingOrder, completion_s
+from coffeebot.fleet.assignment import (
+    STRATEGIES,
+    FreeRobot,
+    WaitingOrder,
+    completion_s,
+    greedy,
+    joint,
+)
 from coffeebot.fleet.estimates import TravelTimes
 from coffeebot.fleet.leases import PLACES, LeaseBook
 from coffeebot.fleet.protocol import (
@@ -81,7 +88,12 @@ from coffeebot.store import IN_FLIGHT, NewOrder, Order, OrderStore, PlacedOrder
 
 log = logging.getLogger(__name__)
 
+
 # Where each status may come from when a robot reports it (as on one robot: forward only).
+def _pairing(pairs: list[tuple[WaitingOrder, FreeRobot]]) -> set[tuple[str, str]]:
+    return {(order.order_id, robot.robot) for order, robot in pairs}
+
+
 _REPORTABLE_FROM: dict[OrderStatus, tuple[OrderStatus, ...]] = {
     OrderStatus.PREPARING: (OrderStatus.PREPARING,),
     OrderStatus.ON_THE_WAY: IN_FLIGHT,
@@ -133,8 +145,11 @@ class DispatchCounters:
     refused_reports: int = 0
     requeued: int = 0
     lost: int = 0
-    decisions: list[tuple[str, str, str]] = field(default_factory=list)
-    """(strategy, order, robot) of every assignment, for the benchmark."""
+    choices: int = 0
+    """Assignments made with several robots free and several orders waiting: where the
+    strategy can matter (for the benchmark)."""
+    choices_differing: int = 0
+    """Of those, how many the other strategy would have paired differently."""
 
 
 class Dispatcher:
@@ -452,7 +467,14 @@ class Dispatcher:
         now_wall = self.store.now()
         waiting = [WaitingOrder(o.id, o.room, max(0.0, now_wall - o.created_at)) for o in queued]
         cost = completion_s(self.cfg.loading_s, self.travel.base_to)
-        for order, robot in STRATEGIES[self.cfg.strategy](waiting, free, cost):
+        pairs = STRATEGIES[self.cfg.strategy](waiting, free, cost)
+        if len(free) > 1 and len(waiting) > 1:
+            other = greedy if self.cfg.strategy == "joint" else joint
+            self.counters.choices += 1
+            self.counters.choices_differing += _pairing(pairs) != _pairing(
+                other(waiting, free, cost)
+            )
+        for order, robot in pairs:
             stored = await self.store.transition(
                 order.order_id,
                 OrderStatus.PREPARING,
@@ -471,7 +493,6 @@ class Dispatcher:
                 drink=stored.drink,
             )
             self.counters.assignments += 1
-            self.counters.decisions.append((self.cfg.strategy, stored.id, robot.robot))
             self.announce(stored, f"assigned to robot {robot.robot}")
             self._send_assignment(record)
 
