@@ -58,6 +58,8 @@ TURN_CHECK_DEG = 7.5
 """Between the headings checked along a turn on the spot before it is made: a rear corner
 522 mm from the axle swings about 1 mm further out between two of them."""
 
+STANDING_MM_S = 20.0
+"""Slower than this the robot stands: a turn on the spot begins only then."""
 TURNING_DPS = 1.0
 """Turning slower than this, the robot is taken to stand: a turn from here is checked first."""
 
@@ -234,6 +236,12 @@ class MotionController:
         error = wrap_deg(wanted - pose.heading_deg)
         if abs(error) <= self.cfg.heading_tolerance_deg:
             status = self._status(ins.id, MotionState.DONE, now, 0.0, "turned")
+            return self._command(0.0, 0.0, dt, status, limit)
+        if abs(self.yaw_rate) < TURNING_DPS and abs(pose.speed_mm_s) > STANDING_MM_S:
+            # Begun rolling, a turn sweeps from further on than its room was checked: a
+            # robot turning round in the elevator car rolled 76 mm deeper as it began, the
+            # monitor stopped it, and from there its sweep had no room.
+            status = self._status(ins.id, MotionState.MOVING, now, None, "stopping to turn")
             return self._command(0.0, 0.0, dt, status, limit)
         if self._way is None:
             floor = self.plan.floor(pose.floor).view_near(pose.x_mm, pose.y_mm)
