@@ -88,12 +88,7 @@ from coffeebot.store import IN_FLIGHT, NewOrder, Order, OrderStore, PlacedOrder
 
 log = logging.getLogger(__name__)
 
-
 # Where each status may come from when a robot reports it (as on one robot: forward only).
-def _pairing(pairs: list[tuple[WaitingOrder, FreeRobot]]) -> set[tuple[str, str]]:
-    return {(order.order_id, robot.robot) for order, robot in pairs}
-
-
 _REPORTABLE_FROM: dict[OrderStatus, tuple[OrderStatus, ...]] = {
     OrderStatus.PREPARING: (OrderStatus.PREPARING,),
     OrderStatus.ON_THE_WAY: IN_FLIGHT,
@@ -136,6 +131,10 @@ class RobotRecord:
 class Announce(Protocol):
     def __call__(self, order: Order, cause: str, report: DeliveryReport | None = None) -> None:
         """Tell the web a stored change; ``report``: the robot's, when it came from one."""
+
+
+def _pairing(pairs: list[tuple[WaitingOrder, FreeRobot]]) -> set[tuple[str, str]]:
+    return {(order.order_id, robot.robot) for order, robot in pairs}
 
 
 @dataclass

@@ -59,7 +59,7 @@ class MessagesInStep:
     """The stepped connections of one simulated process, and the drain the world awaits
     (:class:`~coffeebot.lockstep.OutsideTraffic`)."""
 
-    def __init__(self, engaged: Callable[[], bool] = lambda: False) -> None:
+    def __init__(self, engaged: Callable[[], bool]) -> None:
         self.engaged = engaged
         """While true, what a connection receives is held for the drain."""
         self._clients: list[SteppedClient] = []
