@@ -11,7 +11,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pytest
 from helpers import CONFIG, PLAN, estimate_at
 
 from coffeebot.messages import (
@@ -213,24 +212,16 @@ def test_a_half_turn_beside_a_wall_swings_the_front_through_the_hallways_middle(
     assert all(rate > 0.0 for rate in first_turn_rates(S_MM, 0.0, west + 1.0, east))
 
 
-@pytest.mark.parametrize("action", ["turn", "drive_to"])
-def test_a_turn_on_the_spot_waits_until_the_robot_stands(action: str) -> None:
+def test_a_turn_on_the_spot_waits_until_the_robot_stands() -> None:
     """Begun rolling, a turn sweeps from further on than its room was checked (in the
     elevator car a robot rolled 76 mm deeper as it began its half turn, and from there its
-    sweep had no room): it begins once the robot stands, whether it is the instruction
-    itself or the aim before driving to a point."""
+    sweep had no room): it begins once the robot stands."""
     module = module_at(KEEP_RIGHT_D)
     x, y = FLOOR.from_hallway(S_MM, KEEP_RIGHT_D)
     rolling = estimate_at(2, x, y, EAST).model_copy(update={"speed_mm_s": 120.0})
-    right_x, right_y = FLOOR.from_hallway(S_MM, KEEP_RIGHT_D - 2000.0)
-    instruction = (
-        MoveInstruction(id=1, action="turn", floor=2, heading_deg=EAST - 90.0)
-        if action == "turn"
-        else MoveInstruction(id=1, action="drive_to", floor=2, x_mm=right_x, y_mm=right_y)
-    )
+    instruction = MoveInstruction(id=1, action="turn", floor=2, heading_deg=EAST - 90.0)
     command = module.controller.step(instruction, rolling, 1.0, 0.05, 500.0)
     assert (command.speed_mm_s, command.yaw_rate_dps) == (0.0, 0.0)
     assert command.status.state is MotionState.MOVING
-    assert command.status.detail == "stopping to turn"
     standing = rolling.model_copy(update={"speed_mm_s": 0.0})
     assert module.controller.step(instruction, standing, 1.05, 0.05, 500.0).yaw_rate_dps < 0.0

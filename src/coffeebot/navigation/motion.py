@@ -237,6 +237,12 @@ class MotionController:
         if abs(error) <= self.cfg.heading_tolerance_deg:
             status = self._status(ins.id, MotionState.DONE, now, 0.0, "turned")
             return self._command(0.0, 0.0, dt, status, limit)
+        if abs(self.yaw_rate) < TURNING_DPS and abs(pose.speed_mm_s) > STANDING_MM_S:
+            # Begun rolling, a turn sweeps from further on than its room was checked: a
+            # robot turning round in the elevator car rolled 76 mm deeper as it began, the
+            # monitor stopped it, and from there its sweep had no room.
+            status = self._status(ins.id, MotionState.MOVING, now, None, "stopping to turn")
+            return self._command(0.0, 0.0, dt, status, limit)
         if self._way is None:
             floor = self.plan.floor(pose.floor).view_near(pose.x_mm, pose.y_mm)
             self._way = self._way_round(floor, pose, error, now)
@@ -277,17 +283,10 @@ class MotionController:
         detail: str,
     ) -> Command:
         """Turn on the spot towards ``wanted``. A turn is begun (from standstill, or again
-        after something stopped it) only once the robot stands, and only if its sweep is
-        admissible on the costmap: the rear corners swing 522 mm about the axle, and a turn
-        begun beside another robot or too near a wall ends pressed against it (the collision
-        monitor stops the turn, and neither moves). Refused, the robot stands blocked until
-        the sweep clears."""
-        if abs(self.yaw_rate) < TURNING_DPS and abs(pose.speed_mm_s) > STANDING_MM_S:
-            # Begun rolling, a turn sweeps from further on than its room was checked: a
-            # robot turning round in the elevator car rolled 76 mm deeper as it began, the
-            # monitor stopped it, and from there its sweep had no room.
-            status = self._status(ins.id, MotionState.MOVING, now, remaining, "stopping to turn")
-            return self._command(0.0, 0.0, dt, status, limit)
+        after something stopped it) only if its sweep is admissible on the costmap: the
+        rear corners swing 522 mm about the axle, and a turn begun beside another robot or
+        too near a wall ends pressed against it (the collision monitor stops the turn, and
+        neither moves). Refused, the robot stands blocked until the sweep clears."""
         if self._no_room_to_begin_turn(pose, wanted, now):
             error = wrap_deg(wanted - pose.heading_deg)
             why = f"no room to turn, {error:.0f} deg"
