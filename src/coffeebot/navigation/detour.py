@@ -200,11 +200,12 @@ class DetourPlanner:
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The costmap's obstacle cells as hallway positions (n, 2: s, d), with since when
         each has been occupied, its margin and when it was last seen, less those within
-        ``wall_margin_mm`` and a cell of the side walls: those are the wall itself, read at a
-        glancing angle from a pose a few centimetres off and left unexplained (a robot in its
-        passing lane, its estimate 50 mm towards the middle, took such cells 84 mm from the
-        wall for an obstacle in its lane, and the go-round, its rear's swing held by them,
-        ended pressed against the wall)."""
+        ``wall_margin_mm`` and a
+        cell of the side walls: those are the wall itself, read at a glancing angle from a
+        pose a few centimetres off and left unexplained (a robot in its passing lane, its
+        estimate 50 mm towards the middle, took such cells 84 mm from the wall for an
+        obstacle in its lane, and the go-round, its rear's swing held by them, ended pressed
+        against the wall)."""
         xs, ys, since, margins, seen = self.costmap.obstacles(now)
         sd = np.array([floor.to_hallway(x, y) for x, y in zip(xs, ys, strict=True)]).reshape(-1, 2)
         wall_band = self.cfg.wall_margin_mm + self.cfg.costmap_resolution_mm
