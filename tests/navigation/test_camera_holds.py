@@ -335,7 +335,7 @@ async def test_a_box_the_cameras_see_is_gone_round_before_the_sensors_see_it(
     status = await run_motion(clock, board, 0.5)
     assert status.detour_phase == "going_round"
     assert status.detour_lane_mm is not None and status.detour_lane_mm > LANE + 300.0  # left
-    xs, *_ = module.costmap.obstacles(clock.now())
+    xs, _, _, _ = module.costmap.obstacles(clock.now())
     assert xs.size > 0  # from the camera alone: every sensor saw nothing
 
 

@@ -97,32 +97,6 @@ def test_a_static_obstacle_is_gone_round_in_a_free_lane_past_its_extent() -> Non
     assert extent is not None and extent > sighting.s_mm
 
 
-def test_a_mark_only_remembered_is_not_gone_round() -> None:
-    """Seen for half a second and not since (the trail of a robot that drove past, marked
-    as it went, then out of every cone): 2.5 s on it is remembered, not seen standing, and
-    is waited for, not gone round. Seen again, it is gone round."""
-    planner = planner_with_box(seen_for_s=0.5)
-    sighting = planner.update(FLOOR, START_S, LANE, LANE, 1.0, avoid=True, now=2.5)
-    assert sighting is not None and not sighting.static
-    assert planner.phase is Phase.CONFIRMING
-    module = module_with_box(seen_for_s=0.5)
-    x, y = FLOOR.from_hallway(START_S, LANE)
-    again = RangeScan(
-        cycle_start_s=2.45,
-        cycle_time_s=0.05,
-        readings=[
-            RangeReading(sensor=s.id, status=ReadingStatus.VALID, distance_mm=BOX_MM)
-            if s.id in (2, 3)
-            else RangeReading(sensor=s.id, status=ReadingStatus.OUT_OF_BOUNDS)
-            for s in CONFIG.tof.sensors
-        ],
-    )
-    module.costmap.update(again, FLOOR, x, y, FLOOR.hallway.heading_deg, 2.45)
-    seen = module.controller.detour.update(FLOOR, START_S, LANE, LANE, 1.0, avoid=True, now=2.5)
-    assert seen is not None and seen.static
-    assert module.controller.detour.phase is Phase.GOING_ROUND
-
-
 def test_a_robot_beyond_where_this_one_stops_is_neither_waited_for_nor_gone_round() -> None:
     """A robot waiting for the tea room short of its door swerved round the robot coming out
     of the door beyond its stop, and stood off its lane when its turn came. Something the
@@ -286,7 +260,7 @@ def test_a_narrow_return_is_placed_at_the_near_end_of_its_spread() -> None:
         FLOOR.hallway.heading_deg,
         0.0,
     )
-    xs, ys, *_ = module.costmap.obstacles(0.0)
+    xs, ys, _, _ = module.costmap.obstacles(0.0)
     along = np.array([FLOOR.to_hallway(cx, cy)[0] for cx, cy in zip(xs, ys, strict=True)])
     sensor = next(s for s in CONFIG.tof.sensors if s.id == 3)
     nearest = along.min() - START_S - sensor.x_mm
@@ -305,7 +279,7 @@ def test_a_detour_round_a_narrow_thing_keeps_the_overhang_margin() -> None:
         planner.update(FLOOR, START_S, LANE, LANE, 1.0, avoid=True, now=3.0)
     assert narrow.lane_mm is not None and plain.lane_mm is not None
     assert narrow.lane_mm >= plain.lane_mm + MARGIN - CONFIG.motion.costmap_resolution_mm
-    xs, ys, *_ = narrow.costmap.obstacles(3.0)
+    xs, ys, _, _ = narrow.costmap.obstacles(3.0)
     cells_d = np.array([FLOOR.to_hallway(cx, cy)[1] for cx, cy in zip(xs, ys, strict=True)])
     body = CONFIG.geometry.width_mm / 2 + CONFIG.motion.obstacle_clearance_mm
     assert np.all(np.abs(cells_d - narrow.lane_mm) >= body + MARGIN)
@@ -322,7 +296,7 @@ def test_a_pole_beside_the_lane_whose_seat_reaches_into_it_is_in_the_way() -> No
     narrow = planner_seeing(reading, seen_for_s=0.5, narrow=True)
     plain = planner_seeing(reading, seen_for_s=0.5, narrow=False)
     # Move the lane left until the plain return is just out of it.
-    xs, ys, *_ = plain.costmap.obstacles(0.5)
+    xs, ys, _, _ = plain.costmap.obstacles(0.5)
     cells_d = np.array([FLOOR.to_hallway(cx, cy)[1] for cx, cy in zip(xs, ys, strict=True)])
     half = CONFIG.geometry.width_mm / 2 + CONFIG.motion.obstacle_clearance_mm
     lane = float(cells_d.max()) + half + 10.0

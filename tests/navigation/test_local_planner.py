@@ -41,7 +41,7 @@ def one_sensor_scan(sensor: int, distance_mm: float | None) -> RangeScan:
 
 
 def marked_near(costmap, x: float, y: float, now: float) -> bool:
-    xs, ys, *_ = costmap.obstacles(now)
+    xs, ys, _, _ = costmap.obstacles(now)
     return bool(np.any(np.hypot(xs - x, ys - y) < costmap.res))
 
 

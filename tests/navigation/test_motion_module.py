@@ -298,6 +298,9 @@ async def test_held_with_no_way_past_reports_blocked_with_the_reason(rig: Rig) -
     scan = RangeScan(cycle_start_s=0.0, cycle_time_s=0.05, readings=readings)
     s, _ = FLOOR.to_hallway(X, Y)
     half = FLOOR.hallway.width_mm / 2
+    for d in np.arange(-half + 200, half - 199, 100.0):  # the same wall-to-wall thing
+        x, y = FLOOR.from_hallway(s, float(d))
+        rig.module.costmap.update(scan, FLOOR, x, y, FLOOR.hallway.heading_deg, rig.clock.now())
     held = CollisionStatus(
         state=SafetyState.STOP,
         scan_seq=2,
@@ -306,12 +309,7 @@ async def test_held_with_no_way_past_reports_blocked_with_the_reason(rig: Rig) -
         blocked_faces=("front",),
         may_rotate=True,
     )
-    for _ in range(round((CONFIG.motion.static_confirm_s + 1.0) / 0.25)):
-        for d in np.arange(-half + 200, half - 199, 100.0):  # the same wall-to-wall thing, seen
-            x, y = FLOOR.from_hallway(s, float(d))
-            now = rig.clock.now()
-            rig.module.costmap.update(scan, FLOOR, x, y, FLOOR.hallway.heading_deg, now)
-        await rig.run_for(0.25, held)
+    await rig.run_for(CONFIG.motion.static_confirm_s + 1.0, held)
     status = rig.board.latest(MOTION_STATUS)
     assert status is not None and status.msg.state is MotionState.BLOCKED
     assert "front obstacle at 450 mm" in status.msg.detail

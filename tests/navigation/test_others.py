@@ -48,7 +48,7 @@ def marked_d(with_traffic: bool) -> list[float]:
             scan, FLOOR, pose.x_mm, pose.y_mm, pose.heading_deg, world.t_s, robots=robots
         )
         world.step(0.05)
-    xs, ys, *_ = module.costmap.obstacles(world.t_s)
+    xs, ys, _, _ = module.costmap.obstacles(world.t_s)
     return [FLOOR.to_hallway(x, y)[1] for x, y in zip(xs, ys, strict=True)]
 
 

@@ -112,9 +112,6 @@ class Obstacles(NamedTuple):
     """Since when each has been occupied (s)."""
     margins: np.ndarray
     """The clearance each needs beyond everything else's (mm)."""
-    seen: np.ndarray
-    """When each was last seen (s): a cell out of every cone since is only remembered (the
-    camera layer's points are seen while the layer is current)."""
 
 
 class LocalCostmap:
@@ -416,9 +413,9 @@ class LocalCostmap:
         return i, j
 
     def obstacles(self, now: float) -> Obstacles:
-        """Centres of occupied cells, then the camera layer's points: where, since when, the
-        clearance each needs beyond everything else's (``narrow_margin_mm`` for a narrow
-        return's cell, else 0), and when each was last seen."""
+        """Centres of occupied cells, then the camera layer's points: where, since when, and
+        the clearance each needs beyond everything else's (``narrow_margin_mm`` for a narrow
+        return's cell, else 0)."""
         i, j = self._occupied(now)
         camera_x, camera_y, camera_since = self._camera_points(now)
         pole = now - self.pole_t[i, j] <= self.cfg.obstacle_memory_s
@@ -427,7 +424,6 @@ class LocalCostmap:
             np.concatenate([self.origin[1] + (j + 0.5) * self.res, camera_y]),
             np.concatenate([self.since_t[i, j], camera_since]),
             np.concatenate([np.where(pole, self.narrow_margin_mm, 0.0), np.zeros(camera_x.size)]),
-            np.concatenate([self.hit_t[i, j], np.full(camera_x.size, now)]),
         )
 
     # --- cost queries ----------------------------------------------------------------------
@@ -443,8 +439,7 @@ class LocalCostmap:
         """For each pose, the smallest gap between the body (``footprint``, by default the
         planner's, front extension included) and an obstacle cell (inf: none); a narrow
         return's cell counts ``narrow_margin_mm`` nearer than it is, for what it may carry."""
-        obstacles = self.obstacles(now)
-        ox, oy, margins = obstacles.xs, obstacles.ys, obstacles.margins
+        ox, oy, _, margins = self.obstacles(now)
         if ox.size == 0:
             return np.full(np.shape(xs), math.inf)
         dx = ox[None, :] - np.ravel(xs)[:, None]

@@ -1,15 +1,15 @@
 """The go-around: what lane keeping does about an obstacle in its lane (no I/O).
 
 A detour has three phases. **Confirming**: something is in the lane ahead; the robot stops
-short of it until it has stood still for ``static_confirm_s``, seen again within that time
-(a person walking, something just seen, or only remembered, is waited for) and, if the
-instruction allows leaving the lane, a lane past it is free. **Going round**: the dynamic
-window holds the detour lane until the body's rear is beyond the obstacle's extent, the
-furthest along-hallway position seen of it (a long cart is seen bit by bit, so the extent
-grows and the detour lane may move out). **Rejoining**: past it with the lane ahead clear,
-the dynamic window steers back to the lane, checking the rear's swing against the walls,
-until the robot is within ``REJOIN_MM`` of it; then the detour ends and lane keeping takes
-over. Something new in the lane while rejoining is judged afresh, from confirming.
+short of it until it has stood still for ``static_confirm_s`` (a person walking, or
+something just seen, is waited for) and, if the instruction allows leaving the lane, a lane
+past it is free. **Going round**: the dynamic window holds the detour lane until the body's
+rear is beyond the obstacle's extent, the furthest along-hallway position seen of it (a long
+cart is seen bit by bit, so the extent grows and the detour lane may move out). **Rejoining**:
+past it with the lane ahead clear, the dynamic window steers back to the lane, checking the
+rear's swing against the walls, until the robot is within ``REJOIN_MM`` of it; then the
+detour ends and lane keeping takes over. Something new in the lane while rejoining is judged
+afresh, from confirming.
 
 A narrow return's cells (a pole, a leg: :mod:`coffeebot.navigation.costmap`) carry what may
 stand on them, a seat overhanging by ~240 mm: each of the questions below widens them by
@@ -54,8 +54,7 @@ class Sighting:
     s_mm: float
     """Its along-hallway position."""
     static: bool
-    """Whether it, and the cells just beyond it, have stood still for ``static_confirm_s``
-    (and been seen again within it)."""
+    """Whether it, and the cells just beyond it, have stood still for ``static_confirm_s``."""
     margin_mm: float = 0.0
     """How far beyond the cell what stands on it may reach (a narrow return's margin)."""
 
@@ -195,22 +194,19 @@ class DetourPlanner:
         rear = s - direction * (self.footprint.length_mm / 2 + self.cfg.obstacle_clearance_mm)
         return (rear - detour.extent_s_mm) * direction > 0
 
-    def _hallway_cells(
-        self, floor: Floor, now: float
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def _hallway_cells(self, floor: Floor, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The costmap's obstacle cells as hallway positions (n, 2: s, d), with since when
-        each has been occupied, its margin and when it was last seen, less those within
-        ``wall_margin_mm`` and a
+        each has been occupied and its margin, less those within ``wall_margin_mm`` and a
         cell of the side walls: those are the wall itself, read at a glancing angle from a
         pose a few centimetres off and left unexplained (a robot in its passing lane, its
         estimate 50 mm towards the middle, took such cells 84 mm from the wall for an
         obstacle in its lane, and the go-round, its rear's swing held by them, ended pressed
         against the wall)."""
-        xs, ys, since, margins, seen = self.costmap.obstacles(now)
+        xs, ys, since, margins = self.costmap.obstacles(now)
         sd = np.array([floor.to_hallway(x, y) for x, y in zip(xs, ys, strict=True)]).reshape(-1, 2)
         wall_band = self.cfg.wall_margin_mm + self.cfg.costmap_resolution_mm
         off_walls = np.abs(sd[:, 1]) < floor.hallway.width_mm / 2 - wall_band
-        return sd[off_walls], since[off_walls], margins[off_walls], seen[off_walls]
+        return sd[off_walls], since[off_walls], margins[off_walls]
 
     def free_lane(
         self,
@@ -224,7 +220,7 @@ class DetourPlanner:
         """The lane nearest to ``lane`` whose corridor past the obstacle is free, if any;
         ``settled``: of the cells that have stood still for ``static_confirm_s``."""
         cfg = self.cfg
-        sd, since, margins, _ = self._hallway_cells(floor, now)
+        sd, since, margins = self._hallway_cells(floor, now)
         if settled:
             keep = since <= now - cfg.static_confirm_s
             sd, margins = sd[keep], margins[keep]
@@ -253,7 +249,7 @@ class DetourPlanner:
         """The nearest obstacle cell in the lane ahead within ``horizon_mm`` (default: the
         lookahead; a narrow return's nearer by its margin, and in the lane when what it may
         carry reaches into it) and whether it has stood still."""
-        sd, since, margins, seen = self._hallway_cells(floor, now)
+        sd, since, margins = self._hallway_cells(floor, now)
         if since.size == 0:
             return None
         along = (sd[:, 0] - s) * direction
@@ -270,10 +266,5 @@ class DetourPlanner:
             return None
         nearest = int(np.argmin(np.where(in_lane, reach, np.inf)))
         near = in_lane & (reach < reach[nearest] + self.cfg.static_tolerance_mm)
-        # Standing still is seen, not remembered: a cell marked once and out of every cone
-        # since (the trail of a robot that drove past, marked as it went) is not a thing
-        # standing there. A robot setting off for the car just after another came by took
-        # such a trail, 7.8 s old, for an obstacle in its lane and went round it for 100 s.
-        confirm = self.cfg.static_confirm_s
-        static = bool(np.all(since[near] <= now - confirm) and np.any(seen[near] >= now - confirm))
+        static = bool(np.all(since[near] <= now - self.cfg.static_confirm_s))
         return Sighting(float(sd[nearest, 0]), static, float(margins[nearest]))
