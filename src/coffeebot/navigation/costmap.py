@@ -46,7 +46,7 @@ readings neither mark nor clear it, so it only ever adds to what the sensors see
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, replace
 from typing import NamedTuple
 
@@ -425,6 +425,19 @@ class LocalCostmap:
             np.concatenate([self.since_t[i, j], camera_since]),
             np.concatenate([np.where(pole, self.narrow_margin_mm, 0.0), np.zeros(camera_x.size)]),
         )
+
+    def forget_marks(
+        self, now: float, which: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+    ) -> int:
+        """Clear the occupied cells ``which`` picks from their centres (x, y) and when each
+        was last marked: what marked them is known, other than by looking, to have gone
+        (:mod:`coffeebot.navigation.trails`). Returns how many."""
+        i, j = self._occupied(now)
+        xs = self.origin[0] + (i + 0.5) * self.res
+        ys = self.origin[1] + (j + 0.5) * self.res
+        picked = which(xs, ys, self.hit_t[i, j])
+        self.clear_t[i[picked], j[picked]] = now
+        return int(np.count_nonzero(picked))
 
     # --- cost queries ----------------------------------------------------------------------
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 
@@ -41,6 +42,7 @@ from coffeebot.navigation.detour import DetourPlanner, Phase, Sighting
 from coffeebot.navigation.dwa import DwaChoice, DynamicWindow, axle_point, rollout
 from coffeebot.navigation.others import standing_outlines
 from coffeebot.navigation.passing import oncoming, right_lane_mm
+from coffeebot.navigation.trails import FleetTrails
 from coffeebot.perception.geometry import wrap_deg
 
 AIM_BEFORE_DRIVING_DEG = 10.0
@@ -117,6 +119,9 @@ class MotionController:
         """``turn``: which way round (+1 left, -1 right, 0 the shorter), fixed at its start."""
         self._traffic: Traffic | None = None
         self._traffic_at = 0.0
+        self.trails = FleetTrails.of_robots(
+            footprint.length_mm, footprint.width_mm, costmap.half_fov_deg, cfg.obstacle_memory_s
+        )
         self.passing: str | None = None
         """The robot the passing lane is kept for, if any."""
         self.yielding = False
@@ -126,8 +131,14 @@ class MotionController:
         turn is begun (kept when it gives up, so the distance is not begun again)."""
 
     def note_traffic(self, traffic: Traffic, now: float) -> None:
-        """Where the fleet's other robots are, as the dispatcher said at ``now``."""
+        """Where the fleet's other robots are, as the dispatcher said at ``now``; the marks
+        they left behind where they no longer are go from the costmap."""
         self._traffic, self._traffic_at = traffic, now
+        self.trails.note(traffic, now)
+        if self.costmap.floor is not None:
+            self.costmap.forget_marks(
+                now, partial(self.trails.left_behind, self.costmap.floor.level)
+            )
 
     def standing_robots(self, floor_level: int, now: float) -> list[np.ndarray]:
         """The outlines of the fleet's other robots standing on ``floor_level``, for the
