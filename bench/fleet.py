@@ -30,6 +30,12 @@ What it measures, on the simulated clock:
   every ceiling-camera fix it received (p95, max, each over 300 mm or for the wrong floor);
 - ``joint_p95_s``, ``greedy_p95_s``: the wait p95 of each strategy's run (null where
   it was not run);
+- per run (``--save``, and in the table): ``round_trip_est_s``, the dispatcher's own estimate
+  of a lone robot's way from the tea room to the door and back, averaged over the cups
+  delivered. The orders are the same stream whatever the fleet, but one robot delivers its
+  first ten or so, three their first twenty: in 30 minutes the two can draw rooms of
+  different distances (seed 1: 190 s against 207), and the table's "same work" column
+  weighs each cup by it;
 - per run (``--save``, and in the table's notes): ``places_held_pct``, the share of the
   case's minutes each shared place was held by some robot (the dispatcher's lease book,
   sampled), what shows which place holds a fleet back.
@@ -72,6 +78,7 @@ import numpy as np
 from coffeebot.clock import Clock
 from coffeebot.config import RobotConfig, load_robot_config
 from coffeebot.cpu import BOARD_NAME
+from coffeebot.fleet.estimates import TravelTimes
 from coffeebot.fleet.mosquitto import DISPATCHER_USER, Mosquitto, mosquitto
 from coffeebot.floorplan import load_floorplan
 from coffeebot.logs import LogfmtFormatter, RobotTag
@@ -88,11 +95,14 @@ from coffeebot.scenario.spec import Staff
 from coffeebot.scenario.staff import StaffModule
 from coffeebot.sim.simulation import Simulation
 from coffeebot.store import NewOrder, OrderRules
+from coffeebot.web.eta import Pace
 
 ROOT = Path(__file__).resolve().parents[1]
 PLAN = load_floorplan(ROOT / "floorplans" / "cs-building.toml")
 BOARD = load_robot_config(ROOT / "boards" / "coffeebot-v1.toml")
 RULES = OrderRules(rooms=set(PLAN.rooms), drinks=set(BOARD.web.drinks))
+TRAVEL = TravelTimes(PLAN, BOARD, Pace())
+"""The dispatcher's estimates, for the work each delivered cup took."""
 STAFF = Staff(load_after_s=3.0, pickup_after_s=5.0)
 SAMPLE_S = 0.25
 """How often the bench looks at the world (elevator entries) and the leases, and places due
@@ -295,6 +305,7 @@ async def drive(
 
     unfinished = sum((t := staff.orders.get(o)) is None or not t.status.final for o in placed)
     waits, delivered, failed = [], 0, []
+    round_trips: list[float] = []
     for order_id, placed_s in placed.items():
         times = staff.orders.get(order_id)
         if times is not None and times.arrived_s is not None and times.arrived_s <= end_s:
@@ -302,7 +313,10 @@ async def drive(
         elif times is None or not times.status.final:
             waits.append(end_s - placed_s)
         if times is not None and times.status is OrderStatus.DELIVERED:
-            delivered += times.ended_s is not None and times.ended_s <= end_s
+            if times.ended_s is not None and times.ended_s <= end_s:
+                delivered += 1
+                room = (await orders.get(order_id)).room
+                round_trips.append(2 * TRAVEL.base_to(room))
         elif times is not None and times.status.final:
             order = await orders.get(order_id)
             failed.append(f"{order.room}: {order.status}, {order.detail}")
@@ -331,6 +345,7 @@ async def drive(
         "orders": len(placed),
         "delivered": delivered,
         "delivered_per_h": round(delivered / (end_s / 3600), 1),
+        "round_trip_est_s": round(float(np.mean(round_trips)), 1) if round_trips else None,
         "failed": failed,
         "waiting_at_end": unfinished,
         "wait_p50_s": percentile(waits, 50),
@@ -492,17 +507,27 @@ def summarize(runs: list[dict[str, Any]], cases: list[Case]) -> dict[str, Any]:
 def print_table(result: dict[str, Any], runs: list[dict[str, Any]], elapsed: float) -> None:
     rows = result["cases"]
     one = {r["orders_per_h"]: r["delivered_per_h"] for r in rows if r["robots"] == 1}
+    trips = {}  # the shown run's (the joint one's, if it ran), as summarize() shows it
+    for r in sorted(runs, key=lambda run: run["strategy"] == "joint"):
+        trips[r["robots"], r["orders_per_h"]] = r["round_trip_est_s"]
     print(
-        "| robots | orders/h | delivered/h | vs 1 robot | wait p50 s | wait p95 s | contacts "
-        "| elevator wait p95 s | joint p95 s | greedy p95 s |"
+        "| robots | orders/h | delivered/h | vs 1 robot | round trip s a cup | vs 1 robot, "
+        "same work | wait p50 s | wait p95 s | contacts | elevator wait p95 s | joint p95 s "
+        "| greedy p95 s |"
     )
-    print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for r in rows:
-        base = one.get(r["orders_per_h"])
+        rate = r["orders_per_h"]
+        base, trip, base_trip = one.get(rate), trips.get((r["robots"], rate)), trips.get((1, rate))
         ratio = f"{r['delivered_per_h'] / base:.2f}x" if base else "-"
+        same_work = (
+            f"{r['delivered_per_h'] * trip / (base * base_trip):.2f}x"
+            if base and trip and base_trip
+            else "-"
+        )
         print(
-            f"| {r['robots']} | {r['orders_per_h']:g} | {r['delivered_per_h']:.1f} | {ratio} "
-            f"| {r['wait_p50_s']} | {r['wait_p95_s']} | {r['contacts']} "
+            f"| {r['robots']} | {rate:g} | {r['delivered_per_h']:.1f} | {ratio} | {trip} "
+            f"| {same_work} | {r['wait_p50_s']} | {r['wait_p95_s']} | {r['contacts']} "
             f"| {r['elevator_wait_p95_s']} | {r['joint_p95_s']} | {r['greedy_p95_s']} |"
         )
     if "broker_kill" in result:
