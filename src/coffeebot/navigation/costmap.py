@@ -417,27 +417,29 @@ class LocalCostmap:
         the clearance each needs beyond everything else's (``narrow_margin_mm`` for a narrow
         return's cell, else 0)."""
         i, j = self._occupied(now)
+        xs, ys = self._centres(i, j)
         camera_x, camera_y, camera_since = self._camera_points(now)
         pole = now - self.pole_t[i, j] <= self.cfg.obstacle_memory_s
         return Obstacles(
-            np.concatenate([self.origin[0] + (i + 0.5) * self.res, camera_x]),
-            np.concatenate([self.origin[1] + (j + 0.5) * self.res, camera_y]),
+            np.concatenate([xs, camera_x]),
+            np.concatenate([ys, camera_y]),
             np.concatenate([self.since_t[i, j], camera_since]),
             np.concatenate([np.where(pole, self.narrow_margin_mm, 0.0), np.zeros(camera_x.size)]),
         )
 
     def forget_marks(
         self, now: float, which: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
-    ) -> int:
+    ) -> None:
         """Clear the occupied cells ``which`` picks from their centres (x, y) and when each
         was last marked: what marked them is known, other than by looking, to have gone
-        (:mod:`coffeebot.navigation.trails`). Returns how many."""
+        (:mod:`coffeebot.navigation.trails`)."""
         i, j = self._occupied(now)
-        xs = self.origin[0] + (i + 0.5) * self.res
-        ys = self.origin[1] + (j + 0.5) * self.res
-        picked = which(xs, ys, self.hit_t[i, j])
+        picked = which(*self._centres(i, j), self.hit_t[i, j])
         self.clear_t[i[picked], j[picked]] = now
-        return int(np.count_nonzero(picked))
+
+    def _centres(self, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The centres (x, y) of grid cells (i, j)."""
+        return self.origin[0] + (i + 0.5) * self.res, self.origin[1] + (j + 0.5) * self.res
 
     # --- cost queries ----------------------------------------------------------------------
 
