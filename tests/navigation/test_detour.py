@@ -346,3 +346,46 @@ def test_waiting_beside_the_wall_it_does_not_turn_towards_a_lane_across() -> Non
     # A turn begun while it still rolled is not carried on once it stands.
     rates = waiting(beside_wall, turning_dps=10.0)
     assert rates == sorted(rates, reverse=True) and rates[-1] == 0.0, rates
+
+
+# --- something beside the body, where another robot of the fleet drove ---------------------
+
+
+def beside_the_box(robots_passed: bool | None) -> tuple[DetourPlanner, Phase | None]:
+    """A robot 600 mm left of ``LANE`` with a box (seen 3 s: standing) beside its body, told
+    to keep ``LANE``, where the box is; ``robots_passed``: what the fleet's traffic says of
+    the box's place (None: no fleet)."""
+    planner = planner_with_box(seen_for_s=3.0)
+    ahead = planner.obstacle_ahead(FLOOR, START_S, LANE, 1.0, 3.0)
+    assert ahead is not None and ahead.static
+    alongside = ahead.s_mm - 100.0  # the box beside the body's front half
+    said = None if robots_passed is None else (lambda x, y: robots_passed)
+    sighting = planner.update(
+        FLOOR, alongside, LANE + 600.0, LANE, 1.0, avoid=True, now=3.0, robots_passed=said
+    )
+    assert sighting is not None and sighting.static
+    return planner, planner.phase
+
+
+def test_a_robot_beside_the_body_in_the_lane_is_waited_for_not_gone_round() -> None:
+    """A robot set off from beside the wall for the car as another turned beside it, went
+    round that one along the wall and crept there for two minutes: something beside the
+    body where the traffic says another robot drove is waited for (it moves on); anything
+    else beside it, or without a fleet, is gone round as before."""
+    planner, phase = beside_the_box(robots_passed=True)
+    assert phase is Phase.CONFIRMING
+    assert planner.detour is not None and planner.detour.robot_beside
+    _, phase = beside_the_box(robots_passed=False)
+    assert phase is Phase.GOING_ROUND
+    _, phase = beside_the_box(robots_passed=None)
+    assert phase is Phase.GOING_ROUND
+
+
+def test_a_robots_place_ahead_of_the_body_is_still_gone_round() -> None:
+    """Only beside the body: a robot standing in the lane ahead (stalled, or waiting long)
+    is gone round like anything else."""
+    planner = planner_with_box(seen_for_s=3.0)
+    planner.update(
+        FLOOR, START_S, LANE, LANE, 1.0, avoid=True, now=3.0, robots_passed=lambda x, y: True
+    )
+    assert planner.phase is Phase.GOING_ROUND
