@@ -14,10 +14,6 @@ and that robot has been reported out of reach of it since: it drove on, and so d
 sensors saw there. A mark made again after that robot left (someone standing there, seen)
 stays; a robot without a fleet gets no traffic, and nothing changes. The collision monitor
 knows nothing of this and still stops the robot before anything its sensors see.
-
-The same ways tell the detour what beside a robot's body may be another robot, or its
-trail, which moves on and is waited for rather than gone round
-(:meth:`FleetTrails.passed`, :mod:`coffeebot.navigation.detour`).
 """
 
 from __future__ import annotations
