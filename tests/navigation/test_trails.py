@@ -6,18 +6,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from helpers import CONFIG, PLAN, PLANNER, SETUP, estimate_at, reported, true_pose
+from helpers import CONFIG, PLAN, PLANNER, SETUP, reported, true_pose
 
-from coffeebot.messages import (
-    MotionState,
-    MoveInstruction,
-    RangeReading,
-    RangeScan,
-    ReadingStatus,
-    Traffic,
-)
+from coffeebot.messages import RangeReading, RangeScan, ReadingStatus, Traffic
 from coffeebot.modules.motion import MotionModule
-from coffeebot.navigation.motion import Command
 from coffeebot.sim.world import Pose, RobotSpec, World
 from coffeebot.sim.world.tof import as_range_reading
 
@@ -136,39 +128,3 @@ def trail_left(with_traffic: bool) -> list[tuple[float, float]]:
 def test_a_passing_robots_trail_goes_with_the_traffic() -> None:
     assert trail_left(with_traffic=False)  # out of every cone since it was made
     assert not trail_left(with_traffic=True)
-
-
-def test_a_robot_beside_where_it_drove_is_waited_for() -> None:
-    """The controller asks the trails whether what stands beside its body is where another
-    robot drove: with the traffic it waits for that robot to move on."""
-    where = START_S + AHEAD_MM + CONFIG.geometry.length_mm / 2
-
-    def step(with_traffic: bool) -> Command:
-        module = MotionModule(CONFIG, PLAN)
-        seeing_ahead(module, 0.0, 3.0)
-        if with_traffic:
-            for t in (0.0, 1.0, 2.0, 3.0):
-                other_at(where, t, module)
-        controller = module.controller
-        box = controller.detour.obstacle_ahead(FLOOR, START_S, LANE, 1.0, 3.0)
-        assert box is not None
-        x, y = FLOOR.from_hallway(box.s_mm - 100.0, LANE + 600.0)  # the box beside it
-        pose = estimate_at(2, x, y, HEADING)
-        instruction = MoveInstruction(
-            id=1,
-            action="follow_lane",
-            floor=2,
-            target_s_mm=START_S + 8000.0,
-            lane_mm=LANE,
-            stop=True,
-            avoid=True,
-            target_door="209",
-        )
-        return controller.step(instruction, pose, 3.0, 0.05, 500.0)
-
-    waits = step(with_traffic=True)
-    # Held as by anything it cannot pass: one that never moves on ends as any block does.
-    assert waits.status.state is MotionState.BLOCKED and waits.speed_mm_s == 0.0
-    assert waits.status.detail == "another robot beside, in the lane, waiting for it to move on"
-    # Without traffic it is any obstacle (here with no lane past it: all four cones saw it).
-    assert step(with_traffic=False).status.detail == "no way past the obstacle ahead, waiting"

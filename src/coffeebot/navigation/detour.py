@@ -20,7 +20,6 @@ past.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 from enum import StrEnum
 
@@ -54,8 +53,6 @@ class Sighting:
 
     s_mm: float
     """Its along-hallway position."""
-    d_mm: float
-    """Its across-hallway position."""
     static: bool
     """Whether it, and the cells just beyond it, have stood still for ``static_confirm_s``."""
     margin_mm: float = 0.0
@@ -84,9 +81,6 @@ class Detour:
     too_near_stop: bool = False
     """Confirming: a lane past it is free, but the robot would not be back in its own lane
     by where it must stop in it."""
-    robot_beside: bool = False
-    """Confirming: it stands beside the body, not ahead of it, where another robot of the
-    fleet drove: that robot moves on, and is waited for."""
 
     def go_round(self, lane_mm: float) -> None:
         self.phase, self.lane_mm = Phase.GOING_ROUND, lane_mm
@@ -142,21 +136,12 @@ class DetourPlanner:
         now: float,
         horizon_mm: float | None = None,
         in_lane_by_s_mm: float | None = None,
-        robots_passed: Callable[[float, float], bool] | None = None,
     ) -> Sighting | None:
         """One control period at hallway position ``s``, ``d`` keeping ``lane``: move the
         detour through its phases; the nearest obstacle in the lane ahead, if any, nearer
         than ``horizon_mm`` (default: the lookahead). With ``in_lane_by_s_mm`` (the move
         ends there, in its lane: a turn on the spot or a wait follows) a go-round that would
-        not be back in the lane by then is not begun: the robot waits in its lane.
-
-        ``robots_passed`` (a fleet's robot: whether another robot was lately where a floor
-        point is) keeps a robot waiting for what stands beside its body where another robot
-        drove. Going round that is driving on along the lane it stands in and crossing to its
-        own lane after: a robot set off from beside the wall for the car as one out of the
-        car turned beside it, went round it along the wall and, its way back across held by
-        the wall at its rear, crept 2.9 m in 115 s to where its turn into the car had no
-        room (seed 1, an hour, three robots)."""
+        not be back in the lane by then is not begun: the robot waits in its lane."""
         sighting = self.obstacle_ahead(floor, s, lane, direction, now, horizon_mm)
         detour = self.detour
         if sighting is not None:
@@ -177,13 +162,7 @@ class DetourPlanner:
                     * direction
                     < 0
                 )
-                detour.robot_beside = (
-                    not settled
-                    and robots_passed is not None
-                    and self._beside(sighting, s, direction)
-                    and robots_passed(*floor.from_hallway(sighting.s_mm, sighting.d_mm))
-                )
-                if free is not None and not detour.too_near_stop and not detour.robot_beside:
+                if free is not None and not detour.too_near_stop:
                     detour.go_round(free)
             if detour.phase is Phase.GOING_ROUND:
                 far = sighting.far_edge(direction) + direction * self.cfg.static_tolerance_mm
@@ -207,10 +186,6 @@ class DetourPlanner:
         rear_past = self.footprint.length_mm / 2 + self.cfg.obstacle_clearance_mm
         across = abs(detour_lane - lane) / math.tan(math.radians(self.cfg.max_lane_angle_deg))
         return sighting.far_edge(direction) + direction * (rear_past + across)
-
-    def _beside(self, sighting: Sighting, s: float, direction: float) -> bool:
-        """Whether ``sighting`` reaches back beside the body, not only ahead of its front."""
-        return (sighting.near_edge(direction) - s) * direction < self.footprint.length_mm / 2
 
     def _passed(self, detour: Detour, s: float, direction: float) -> bool:
         """The body's rear is beyond the obstacle's extent (rejoining: nothing to pass)."""
@@ -292,6 +267,4 @@ class DetourPlanner:
         nearest = int(np.argmin(np.where(in_lane, reach, np.inf)))
         near = in_lane & (reach < reach[nearest] + self.cfg.static_tolerance_mm)
         static = bool(np.all(since[near] <= now - self.cfg.static_confirm_s))
-        return Sighting(
-            float(sd[nearest, 0]), float(sd[nearest, 1]), static, float(margins[nearest])
-        )
+        return Sighting(float(sd[nearest, 0]), static, float(margins[nearest]))

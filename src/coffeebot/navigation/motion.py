@@ -513,9 +513,8 @@ class MotionController:
         # A stop that is not a door's (where the robot turns, or waits its turn) is made in
         # the lane: one that ended going round stood off it, its turn refused for the wall.
         in_lane_by = ins.target_s_mm if ins.stop and ins.target_door is None else None
-        robots_passed = None if self._traffic is None else partial(self.trails.passed, floor.level)
         sighting = self.detour.update(
-            floor, s, d, lane, direction, ins.avoid, now, horizon, in_lane_by, robots_passed
+            floor, s, d, lane, direction, ins.avoid, now, horizon, in_lane_by
         )
         detour_lane = self.detour.lane_mm
         if self.detour.phase is Phase.CONFIRMING and sighting is not None:
@@ -524,8 +523,6 @@ class MotionController:
             why = _waiting_why(sighting, ins.avoid)
             if self.detour.detour is not None and self.detour.detour.too_near_stop:
                 why = "obstacle ahead, too near the stop to go round, waiting"
-            if self.detour.detour is not None and self.detour.detour.robot_beside:
-                why = "another robot beside, in the lane, waiting for it to move on"
             status = self._status(
                 ins.id, _waiting_state(sighting, ins.avoid, target), now, remaining, why
             )

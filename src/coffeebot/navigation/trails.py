@@ -99,16 +99,6 @@ class FleetTrails:
             forget |= gone & (marked_at <= last_there + REPORT_SLACK_S)
         return forget
 
-    def passed(self, floor_level: int, x_mm: float, y_mm: float) -> bool:
-        """Whether another robot was reported within reach of (``x_mm``, ``y_mm``) on
-        ``floor_level`` over the costmap's memory: a mark there may be that robot, or its
-        trail, and it moves on."""
-        for name in self._present:
-            _, px, py, _ = self._path(self._ways[name], floor_level)
-            if px.size and np.min(np.hypot(px - x_mm, py - y_mm)) <= self.reach_mm:
-                return True
-        return False
-
     @staticmethod
     def _path(
         way: deque[tuple[float, int, float, float]], floor_level: int
