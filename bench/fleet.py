@@ -3,6 +3,8 @@
     python bench/fleet.py                     # a table, for docs/fleet.md
     python bench/fleet.py --json              # one JSON object
     python bench/fleet.py --robots 1,3 --rates 90 --minutes 10 --workers 2
+    python bench/fleet.py --robots 3 --rates 90 --greedy-rates "" --no-broker-kill \
+        --minutes 60 --logs DIR --record DIR    # a jam to look into, log and MCAP
 
 Each case is one fleet on a Mosquitto of its own (``coffeebot.runtime.fleet``): the
 dispatcher and N whole robot daemons in one simulated CS building, every robot parked at its
@@ -75,6 +77,7 @@ from typing import Any
 import aiomqtt
 import numpy as np
 
+from coffeebot.board.recording import Recorder
 from coffeebot.clock import Clock
 from coffeebot.config import RobotConfig, load_robot_config
 from coffeebot.cpu import BOARD_NAME
@@ -134,6 +137,12 @@ class Case:
     broker_kill: bool = False
     cameras: bool = False
     """The building's ceiling cameras on: the dispatcher's camera service for every robot."""
+
+    @property
+    def label(self) -> str:
+        """What names the case's log and recordings."""
+        kill = "-broker-kill" if self.broker_kill else ""
+        return f"{self.robots}x{self.orders_per_h:g}-{self.strategy}{kill}"
 
 
 @dataclass
@@ -390,7 +399,7 @@ async def drive(
     }
 
 
-async def run_case(case: Case) -> dict[str, Any]:
+async def run_case(case: Case, record_dir: Path | None = None) -> dict[str, Any]:
     fleet_config = BOARD.fleet.model_copy(
         update={"dispatch": BOARD.fleet.dispatch.model_copy(update={"strategy": case.strategy})}
     )
@@ -419,14 +428,22 @@ async def run_case(case: Case) -> dict[str, Any]:
             simulated_time = SimulatedTime(fleet.dispatcher.board.clock)
             for handler in logging.getLogger().handlers:
                 handler.addFilter(simulated_time)
-            serving = asyncio.create_task(serve_fleet(fleet))
-            observer = asyncio.create_task(observe(broker, traffic))
-            try:
-                result = await drive(fleet, case, staff, probes, broker)
-            finally:
-                observer.cancel()
-                fleet.request_stop("bench case over")
-                await asyncio.wait_for(serving, 120)
+            async with contextlib.AsyncExitStack() as recordings:
+                if record_dir is not None:
+                    for runtime in fleet.robots:
+                        name = runtime.config.fleet.robot_id
+                        path = record_dir / f"{case.label}-{name}.mcap"
+                        await recordings.enter_async_context(
+                            Recorder(runtime.board, path, metadata={"robot": name})
+                        )
+                serving = asyncio.create_task(serve_fleet(fleet))
+                observer = asyncio.create_task(observe(broker, traffic))
+                try:
+                    result = await drive(fleet, case, staff, probes, broker)
+                finally:
+                    observer.cancel()
+                    fleet.request_stop("bench case over")
+                    await asyncio.wait_for(serving, 120)
     simulated_s = result["simulated_s"]
     result["broker_msgs_per_s_per_robot"] = round(
         sum(traffic.messages.values()) / simulated_s / case.robots, 2
@@ -458,17 +475,16 @@ class SimulatedTime(logging.Filter):
         return True
 
 
-def run_case_in_process(case: Case, log_dir: Path | None) -> dict[str, Any]:
+def run_case_in_process(
+    case: Case, log_dir: Path | None, record_dir: Path | None = None
+) -> dict[str, Any]:
     if log_dir is not None:
-        name = f"{case.robots}x{case.orders_per_h:g}-{case.strategy}" + (
-            "-broker-kill" if case.broker_kill else ""
-        )
-        handler = logging.FileHandler(log_dir / f"{name}.log")
+        handler = logging.FileHandler(log_dir / f"{case.label}.log")
         handler.setFormatter(LogfmtFormatter())
         handler.addFilter(RobotTag())  # whose daemon logged each line
         # A worker process runs several cases: each its own file.
         logging.basicConfig(handlers=[handler], level=logging.INFO, force=True)
-    return asyncio.run(run_case(case))
+    return asyncio.run(run_case(case, record_dir))
 
 
 def summarize(runs: list[dict[str, Any]], cases: list[Case]) -> dict[str, Any]:
@@ -596,6 +612,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", action="store_true")
     parser.add_argument("--save", type=Path, help="every run's figures, as JSON")
     parser.add_argument("--logs", type=Path, metavar="DIR", help="each case's log, INFO and up")
+    parser.add_argument(
+        "--record",
+        type=Path,
+        metavar="DIR",
+        help="each robot's board, every case, as MCAP (on the simulated clock: open a jam in "
+        "Foxglove at the second its log names)",
+    )
     args = parser.parse_args(argv)
     cases = [
         Case(robots, rate, strategy, args.minutes, args.seed, cameras=args.cameras)
@@ -609,15 +632,18 @@ def main(argv: list[str] | None = None) -> int:
         cases.append(Case(3, KILL_PER_H, "joint", args.minutes / 2, args.seed, True, args.cameras))
     # The longest first, so two workers end together.
     order = sorted(range(len(cases)), key=lambda i: -cases[i].robots * cases[i].minutes)
-    if args.logs is not None:
-        args.logs.mkdir(parents=True, exist_ok=True)
+    for directory in (args.logs, args.record):
+        if directory is not None:
+            directory.mkdir(parents=True, exist_ok=True)
     started = time.monotonic()
     with ProcessPoolExecutor(args.workers) as pool:
         done = dict(
             zip(
                 order,
                 pool.map(
-                    functools.partial(run_case_in_process, log_dir=args.logs),
+                    functools.partial(
+                        run_case_in_process, log_dir=args.logs, record_dir=args.record
+                    ),
                     [cases[i] for i in order],
                 ),
                 strict=True,
