@@ -398,8 +398,9 @@ def test_a_fleet_robot_holds_short_of_the_elevator_on_its_side_near_the_wall() -
 
 def test_a_fleet_robot_gives_the_car_back_once_out_and_its_landing_once_clear() -> None:
     """The car is given back as soon as the robot is out of it (a robot on the other floor
-    has it at once), the landing in front of its door once the robot is as far from it as
-    the next robot on that floor waits (that one sets off only once the way is clear)."""
+    has it at once), the landing in front of its door once the robot's body is a body's
+    length clear past where the next robot on that floor waits (that one sets off across
+    the hallway only once the way beside it is clear)."""
     base = FLEET_ROBOT.base
     steps = FLEET_ROBOT.route(2, base.door.at_mm, FLEET_ROBOT.door_place("305"), base.door).steps
     ride_at = next(i for i, s in enumerate(steps) if isinstance(s, ElevatorRide))
@@ -411,8 +412,24 @@ def test_a_fleet_robot_gives_the_car_back_once_out_and_its_landing_once_clear() 
     assert elevator is not None
     assert back == Lease("elevator", False)
     assert isinstance(turn, Move) and turn.instruction.detail == "into the lane"
-    assert isinstance(away, Move) and away.instruction.target_s_mm == elevator.at_mm - HOLD_MM
+    length = CONFIG.geometry.length_mm
+    assert isinstance(away, Move)
+    assert away.instruction.target_s_mm == elevator.at_mm - HOLD_MM - 2 * length
     assert landing_back == Lease("landing", False)
+
+
+def test_a_fleet_robot_out_of_the_car_holds_the_landing_to_a_door_nearer_than_that() -> None:
+    """313's door lies between the car and where the next robot is clear of the one coming
+    out: the landing is held until the robot stands at that door, not given back at once
+    (the next robot would set off across the hallway as this one drives past it)."""
+    base = FLEET_ROBOT.base
+    steps = FLEET_ROBOT.route(2, base.door.at_mm, FLEET_ROBOT.door_place("313"), base.door).steps
+    ride_at = next(i for i, s in enumerate(steps) if isinstance(s, ElevatorRide))
+    after = steps[ride_at + 1 :]
+    moves = [s for s in after if isinstance(s, Move)]
+    assert moves[-1].instruction.detail == "to 313"
+    assert after[-1] == Lease("landing", False)
+    assert Lease("landing", False) not in after[:-1]
 
 
 def test_a_single_robot_holds_no_places() -> None:

@@ -543,10 +543,15 @@ class RoutePlanner:
         return [away, Lease("crossing", False)], clear_at
 
     def _clear_of_elevator(self, floor: Floor, s: float, goal: Place) -> tuple[list[Step], float]:
-        """Out of the car, a fleet's robot gives the space in front of its door back once it
-        is as far from it as the next robot waits (at once if its goal is nearer; at the
-        holding point if it goes on to the loading spot nearby, where it then waits for
-        it); and where it is then."""
+        """Out of the car, a fleet's robot gives the space in front of its door back once
+        its body is a body's length clear past where the next robot waits
+        (:meth:`_to_elevator`),
+        the lane that one crosses to for the car clear beside it (given back right beside
+        it, the robot waiting beside the wall set off across into the one driving past,
+        went round it along the wall and stopped at the car with no room to turn: the
+        fleet stood for good); at its goal's door if that is nearer; at the holding point
+        if it goes on to the loading spot nearby, where it then waits for it; and where it
+        is then."""
         given_back: list[Step] = [*self._in_front_of_car(floor, False)]
         holding = self._holding_point(goal)
         if holding is not None:
@@ -560,9 +565,11 @@ class RoutePlanner:
             back = self._turn(floor, self.travel_deg(floor, -direction), "facing back")
             return [wait, *given_back, back], holding + direction * 2 * self.pivot_mm
         direction = 1.0 if goal.door.at_mm >= s else -1.0
-        clear_at = s + direction * self._elevator_hold_mm
+        clear_at = s + direction * (self._elevator_hold_mm + 2 * self.body_length_mm)
         if (goal.door.at_mm - clear_at) * direction <= 0:
-            return given_back, s
+            # Held to the door (given back at the route's end), unless the robot turns in
+            # there: then no other place may be asked for while holding it.
+            return (given_back if goal.inside else []), s
         lane = self.lane_mm(floor, direction)
         away = self._lane(floor, clear_at, lane, stop=False, detail="away from the elevator")
         return [away, *given_back], clear_at
