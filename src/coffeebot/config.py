@@ -847,8 +847,9 @@ class MotionConfig(Section):
         100.0,
         ge=0,
         le=DISTANCE_MM,
-        description="least gap kept to a plan wall: above the collision module's "
-        "side radius plus its hysteresis, so going round never trips it",
+        description="least gap the body's front and sides keep to a plan wall: above the "
+        "collision module's side radius plus its hysteresis, so going round never trips it "
+        "(the rear corners, which no sensor watches, keep turn_clearance_mm)",
     )
     obstacle_clearance_mm: float = Field(
         100.0,

@@ -128,6 +128,36 @@ def test_too_close_to_a_wall_the_window_steers_away_instead_of_giving_up() -> No
     assert choice.speed_mm_s > 0 and choice.yaw_rate_dps > 0  # forward, turning to the left
 
 
+@pytest.mark.parametrize(
+    ("gap", "speed"), [(109.0, 0.0), (100.0, 0.0), (100.0, 100.0), (95.0, 50.0)]
+)
+def test_beside_the_wall_the_window_turns_away_swinging_the_rear_towards_it(
+    gap: float, speed: float
+) -> None:
+    """At the edge of the side clearance, heading 1.7 degrees towards the wall, for the lane
+    across the hallway: a turn away swings the rear corner (455 mm behind the axle) towards
+    the wall first, which no sensor watches; it may come to the turn clearance, as in a turn
+    on the spot. Held to the side clearance, the window found only creeping straight on (at
+    100 mm/s no arc at all): a robot gone round something beside the wall crept 2.85 m
+    along it in 115 s, to where its turn into the car had no room."""
+    d = -HALF_WIDTH + CONFIG.geometry.width_mm / 2 + gap
+    x, y = FLOOR.from_hallway(13000.0, d)
+    choice = DynamicWindow(CONFIG.motion, CONFIG.motor.axle_x_mm).choose(
+        costmap_at(x, y),
+        FLOOR,
+        (x, y, FLOOR.hallway.heading_deg - 1.7),
+        speed,
+        0.0,
+        lane_mm=295.0,
+        direction=1.0,
+        max_speed_mm_s=500.0,
+        dt_s=0.05,
+        now=0.0,
+    )
+    assert choice is not None
+    assert choice.speed_mm_s > 0 and choice.yaw_rate_dps > 0  # forward, turning to the left
+
+
 def test_from_a_standstill_the_window_heads_for_the_lane_instead_of_swinging_the_centre() -> None:
     """Standing still 300 mm right of its lane in an empty hallway, the robot must not turn
     right, away from it. A turn to the right about the axle ahead swings the centre left,
