@@ -471,7 +471,7 @@ class LocalCostmap:
         self, xs: np.ndarray, ys: np.ndarray, thetas: np.ndarray, rear_allowance_mm: float = 0.0
     ) -> np.ndarray:
         """For each pose, the smallest gap between the body's rectangle and a plan wall, the
-        rear corners' counted ``rear_allowance_mm`` wider.
+        rear corners counted ``rear_allowance_mm`` wider.
 
         Exact for a convex body and straight walls that do not cross it: the nearest points
         are a wall end against the rectangle or a body corner against a wall. A turn near a

@@ -545,13 +545,12 @@ class RoutePlanner:
     def _clear_of_elevator(self, floor: Floor, s: float, goal: Place) -> tuple[list[Step], float]:
         """Out of the car, a fleet's robot gives the space in front of its door back once
         its body is a body's length clear past where the next robot waits
-        (:meth:`_to_elevator`),
-        the lane that one crosses to for the car clear beside it (given back right beside
-        it, the robot waiting beside the wall set off across into the one driving past,
-        went round it along the wall and stopped at the car with no room to turn: the
-        fleet stood for good); at its goal's door if that is nearer; at the holding point
-        if it goes on to the loading spot nearby, where it then waits for it; and where it
-        is then."""
+        (:meth:`_to_elevator`), so the lane that one crosses to for the car is clear beside
+        it (given back right beside it, the robot waiting beside the wall set off across
+        into the one driving past, went round it along the wall and stopped at the car with
+        no room to turn: the fleet stood for good); at its goal's door if that is nearer;
+        at the holding point if it goes on to the loading spot nearby, where it then waits
+        for it; and where it is then."""
         given_back: list[Step] = [*self._in_front_of_car(floor, False)]
         holding = self._holding_point(goal)
         if holding is not None:
