@@ -17,7 +17,7 @@ from coffeebot.messages import (
     ReadingStatus,
 )
 from coffeebot.modules.motion import MotionModule
-from coffeebot.navigation.dwa import DynamicWindow, rollout
+from coffeebot.navigation.dwa import DwaChoice, DynamicWindow, rollout
 from coffeebot.perception.geometry import sensor_origin
 
 FLOOR = PLAN.floor(2)
@@ -104,26 +104,32 @@ def test_a_turned_body_reaches_the_wall_with_a_corner() -> None:
     assert turned < parallel - 100.0
 
 
-def test_too_close_to_a_wall_the_window_steers_away_instead_of_giving_up() -> None:
-    """60 mm from the wall is inside the side clearance, so every pose is "lethal"; arcs that
-    end no nearer are still admissible. At speed, the best of them turns away from the wall
-    (slowly: a turn first swings the rear corner towards it)."""
-    gap = 60.0
-    d = -HALF_WIDTH + CONFIG.geometry.width_mm / 2 + gap
+def choice_beside_the_wall(
+    gap_mm: float, towards_deg: float, speed: float, lane_mm: float
+) -> DwaChoice | None:
+    """The window's choice for a robot driving +s at ``speed``, its side ``gap_mm`` from the
+    right wall, heading ``towards_deg`` towards it, for ``lane_mm``."""
+    d = -HALF_WIDTH + CONFIG.geometry.width_mm / 2 + gap_mm
     x, y = FLOOR.from_hallway(13000.0, d)
-    costmap = costmap_at(x, y)
-    choice = DynamicWindow(CONFIG.motion, CONFIG.motor.axle_x_mm).choose(
-        costmap,
+    return DynamicWindow(CONFIG.motion, CONFIG.motor.axle_x_mm).choose(
+        costmap_at(x, y),
         FLOOR,
-        (x, y, FLOOR.hallway.heading_deg),
-        400.0,
+        (x, y, FLOOR.hallway.heading_deg - towards_deg),
+        speed,
         0.0,
-        lane_mm=0.0,
+        lane_mm=lane_mm,
         direction=1.0,
         max_speed_mm_s=500.0,
         dt_s=0.05,
         now=0.0,
     )
+
+
+def test_too_close_to_a_wall_the_window_steers_away_instead_of_giving_up() -> None:
+    """60 mm from the wall is inside the side clearance, so every pose is "lethal"; arcs that
+    end no nearer are still admissible. At speed, the best of them turns away from the wall
+    (slowly: a turn first swings the rear corner towards it)."""
+    choice = choice_beside_the_wall(gap_mm=60.0, towards_deg=0.0, speed=400.0, lane_mm=0.0)
     assert choice is not None
     assert choice.speed_mm_s > 0 and choice.yaw_rate_dps > 0  # forward, turning to the left
 
@@ -140,20 +146,7 @@ def test_beside_the_wall_the_window_turns_away_swinging_the_rear_towards_it(
     on the spot. Held to the side clearance, the window found only creeping straight on (at
     100 mm/s no arc at all): a robot gone round something beside the wall crept 2.85 m
     along it in 115 s, to where its turn into the car had no room."""
-    d = -HALF_WIDTH + CONFIG.geometry.width_mm / 2 + gap
-    x, y = FLOOR.from_hallway(13000.0, d)
-    choice = DynamicWindow(CONFIG.motion, CONFIG.motor.axle_x_mm).choose(
-        costmap_at(x, y),
-        FLOOR,
-        (x, y, FLOOR.hallway.heading_deg - 1.7),
-        speed,
-        0.0,
-        lane_mm=295.0,
-        direction=1.0,
-        max_speed_mm_s=500.0,
-        dt_s=0.05,
-        now=0.0,
-    )
+    choice = choice_beside_the_wall(gap_mm=gap, towards_deg=1.7, speed=speed, lane_mm=295.0)
     assert choice is not None
     assert choice.speed_mm_s > 0 and choice.yaw_rate_dps > 0  # forward, turning to the left
 
