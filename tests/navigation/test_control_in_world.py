@@ -91,6 +91,30 @@ def test_goes_around_a_mail_cart_seen_only_by_its_corner_bars() -> None:
     assert_went_round(world, run, stop_s=21000)
 
 
+def test_turning_back_from_beside_the_far_wall_keeps_the_rear_off_it() -> None:
+    """Going west round a mail cart in its lane, the robot stands beside the far wall
+    heading 10 degrees into it. The turn out towards its lane, about the front axle, swings
+    the rear corner into that wall: checked every 7.5 degrees, the corner landed past the
+    wall and counted as clear there, and the robot struck it turning (a benchmark delivery's
+    pose). It gets past without touching anything."""
+    west = FLOOR.hallway.heading_deg + 180.0
+    cx, cy = FLOOR.from_hallway(24520.0, 580.0)
+    cart = ObstacleSpec(id="cart", kind="mail_cart", floor=2, x_mm=cx, y_mm=cy, heading_deg=west)
+    x, y = FLOOR.from_hallway(25000.0, -480.0)
+    world = World(
+        PLAN,
+        RobotSpec.from_config(CONFIG),
+        floor=2,
+        pose=Pose(x, y, west + 10.0),
+        obstacles=[cart],
+        seed=3,
+    )
+    westward = lane(20000).model_copy(update={"lane_mm": PLANNER.lane_mm(FLOOR, -1.0)})
+    run = drive(world, westward, max_time_s=60)
+    assert not world.robot.collisions
+    assert run.done
+
+
 def test_regains_the_lane_without_weaving() -> None:
     """Started 200 mm off the lane, the robot converges on it and does not swing past it by
     more than pose noise would: the lateral loop is well damped."""

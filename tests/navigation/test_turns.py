@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from helpers import CONFIG, PLAN, estimate_at
 
 from coffeebot.messages import (
@@ -89,6 +90,17 @@ def closest_wall_mm(module: MotionModule, d_mm: float, heading_deg: float) -> fl
         module.costmap.footprint.axle_x_mm,
     )
     return float(module.costmap.wall_gaps(xs, ys, headings).min())
+
+
+def test_a_corner_past_the_wall_reads_as_a_negative_gap() -> None:
+    """Facing across the hallway 200 mm from the wall, the rear corners lie 105 mm past it:
+    a turn checked every few degrees can land a corner there, and measured only as a
+    distance it would read as clear of the wall as a lane 105 mm from it."""
+    module = module_at(KEEP_RIGHT_D)
+    x, y = FLOOR.from_hallway(S_MM, -HALF_WIDTH + 200.0)
+    north = math.radians(EAST + 90.0)
+    gap = module.costmap.wall_gaps(np.array([x]), np.array([y]), np.array([north]))[0]
+    assert gap == pytest.approx(-(CONFIG.geometry.length_mm / 2 - 200.0), abs=1.0)
 
 
 def test_a_turn_away_from_the_near_wall_is_not_begun_and_the_robot_says_so() -> None:

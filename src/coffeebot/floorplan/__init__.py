@@ -38,6 +38,7 @@ from coffeebot.floorplan.features import (
     Wall,
     WallSegment,
     segment_distances,
+    segments_crossed,
 )
 from coffeebot.floorplan.floor import Extent, Floor, Meeting
 from coffeebot.floorplan.load import load_floorplan, parse_floorplan
@@ -70,4 +71,5 @@ __all__ = [
     "parse_floorplan",
     "plan_warnings",
     "segment_distances",
+    "segments_crossed",
 ]

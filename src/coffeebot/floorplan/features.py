@@ -293,3 +293,23 @@ def segment_distances(
     length2 = np.maximum(ex * ex + ey * ey, 1e-9)
     t = np.clip(((x - px) * ex + (y - py) * ey) / length2, 0.0, 1.0)
     return np.hypot(px + t * ex - x, py + t * ey - y)
+
+
+def segments_crossed(
+    segments: np.ndarray,
+    x0: np.ndarray,
+    y0: np.ndarray,
+    x1: np.ndarray,
+    y1: np.ndarray,
+) -> np.ndarray:
+    """Whether the segment from (``x0``, ``y0``) to (``x1``, ``y1``) crosses each segment of
+    an (N, >=4) array of x0, y0, x1, y1 rows; the points are column arrays (P, 1) and the
+    result is (P, N). Touching (an end on the other segment) is not crossing."""
+    ax, ay, bx, by = segments[:, 0], segments[:, 1], segments[:, 2], segments[:, 3]
+    ex, ey = bx - ax, by - ay
+    dx, dy = x1 - x0, y1 - y0
+    start_side = ex * (y0 - ay) - ey * (x0 - ax)
+    end_side = ex * (y1 - ay) - ey * (x1 - ax)
+    a_side = dx * (ay - y0) - dy * (ax - x0)
+    b_side = dx * (by - y0) - dy * (bx - x0)
+    return np.asarray((start_side * end_side < 0.0) & (a_side * b_side < 0.0))

@@ -53,7 +53,7 @@ from typing import NamedTuple
 import numpy as np
 
 from coffeebot.config import CollisionConfig, MotionConfig, TofSensorConfig
-from coffeebot.floorplan import Floor, segment_distances
+from coffeebot.floorplan import Floor, segment_distances, segments_crossed
 from coffeebot.messages import NOTHING_IN_RANGE, RangeReading, RangeScan, ReadingStatus
 from coffeebot.navigation.others import outline_points
 from coffeebot.perception.collision import narrow_returns, near_end_mm
@@ -471,11 +471,15 @@ class LocalCostmap:
         self, xs: np.ndarray, ys: np.ndarray, thetas: np.ndarray, rear_allowance_mm: float = 0.0
     ) -> np.ndarray:
         """For each pose, the smallest gap between the body's rectangle and a plan wall, the
-        rear corners counted ``rear_allowance_mm`` wider.
+        rear corners counted ``rear_allowance_mm`` wider; negative where a corner lies
+        beyond a wall (the wall between it and the centre), by that corner's distance to it.
 
         Exact for a convex body and straight walls that do not cross it: the nearest points
         are a wall end against the rectangle or a body corner against a wall. A turn near a
         wall swings the corners out past the half width, which a centre distance misses.
+        Without the sign, a turn checked every few degrees could carry a corner through a
+        wall and find it clear again on the far side (a half turn beside a wall was judged
+        free, and its rear corner struck the wall).
         """
         shape = np.shape(xs)
         if self.floor is None:
@@ -503,7 +507,9 @@ class LocalCostmap:
         corners = self._corners
         cx = (x[:, None] + c * corners[:, 0] - s * corners[:, 1]).reshape(-1, 1)
         cy = (y[:, None] + s * corners[:, 0] + c * corners[:, 1]).reshape(-1, 1)
-        per_corner = segment_distances(seg, cx, cy).min(axis=1).reshape(-1, 4)
+        beyond = segments_crossed(seg, np.repeat(x, 4)[:, None], np.repeat(y, 4)[:, None], cx, cy)
+        distances = segment_distances(seg, cx, cy)
+        per_corner = np.where(beyond, -distances, distances).min(axis=1).reshape(-1, 4)
         from_corners = (per_corner + self._rear_corners * rear_allowance_mm).min(axis=1)
         return np.minimum(from_ends, from_corners).reshape(shape)
 
@@ -585,5 +591,7 @@ class LocalCostmap:
 
 def _escapes(gaps: np.ndarray, start_gap: float) -> np.ndarray:
     """Per path (rows of ``gaps`` over time): ends no nearer than it starts and never comes
-    within half the starting gap on the way."""
-    return (gaps[:, -1] >= start_gap - 1.0) & (gaps.min(axis=1) >= start_gap / 2.0)
+    within half the starting gap on the way; from a start already past a wall (the
+    estimate moved), never further past it."""
+    least = start_gap / 2.0 if start_gap > 0.0 else start_gap - 1.0
+    return (gaps[:, -1] >= start_gap - 1.0) & (gaps.min(axis=1) >= least)
