@@ -303,8 +303,9 @@ def segments_crossed(
     y1: np.ndarray,
 ) -> np.ndarray:
     """Whether the segment from (``x0``, ``y0``) to (``x1``, ``y1``) crosses each segment of
-    an (N, >=4) array of x0, y0, x1, y1 rows; the points are column arrays (P, 1) and the
-    result is (P, N). Touching (an end on the other segment) is not crossing."""
+    an (N, >=4) array of x0, y0, x1, y1 rows. With (N,) points, row by row; with column
+    arrays (P, 1), every point against every row: (P, N). Touching (an end on the other
+    segment) is not crossing."""
     ax, ay, bx, by = segments[:, 0], segments[:, 1], segments[:, 2], segments[:, 3]
     ex, ey = bx - ax, by - ay
     dx, dy = x1 - x0, y1 - y0

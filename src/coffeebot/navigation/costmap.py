@@ -507,9 +507,12 @@ class LocalCostmap:
         corners = self._corners
         cx = (x[:, None] + c * corners[:, 0] - s * corners[:, 1]).reshape(-1, 1)
         cy = (y[:, None] + s * corners[:, 0] + c * corners[:, 1]).reshape(-1, 1)
-        beyond = segments_crossed(seg, np.repeat(x, 4)[:, None], np.repeat(y, 4)[:, None], cx, cy)
         distances = segment_distances(seg, cx, cy)
-        per_corner = np.where(beyond, -distances, distances).min(axis=1).reshape(-1, 4)
+        # A wall between a corner and the centre lies within the corner's reach of it.
+        pose, wall = np.nonzero(distances < body_reach)
+        beyond = segments_crossed(seg[wall], x[pose // 4], y[pose // 4], cx[pose, 0], cy[pose, 0])
+        distances[pose[beyond], wall[beyond]] *= -1.0
+        per_corner = distances.min(axis=1).reshape(-1, 4)
         from_corners = (per_corner + self._rear_corners * rear_allowance_mm).min(axis=1)
         return np.minimum(from_ends, from_corners).reshape(shape)
 
