@@ -207,7 +207,7 @@ async def bench(runs: int, seed: int, speed: float, plan_path: Path) -> dict[str
         ],
         "collisions": sum(r["collisions"] for r in rows),
         "collisions_robot_moving": sum(
-            abs(c["speed_mm_s"]) >= MOVING_MM_S for r in rows for c in r["contacts"]
+            c["towards_mm_s"] >= MOVING_MM_S for r in rows for c in r["contacts"]
         ),
         "contacts": [
             {"scenario": r["scenario"], **contact} for r in rows for contact in r["contacts"]
@@ -245,7 +245,8 @@ def print_table(result: dict[str, Any], elapsed: float) -> None:
     for c in result["contacts"]:
         print(
             f"- collision: {c['scenario']}: t={c['t']} s with {c['with']} at "
-            f"{c['speed_mm_s']} mm/s, floor {c['floor']} ({c['x_mm']}, {c['y_mm']})"
+            f"{c['speed_mm_s']} mm/s (the touched point towards it at {c['towards_mm_s']} mm/s), "
+            f"floor {c['floor']} ({c['x_mm']}, {c['y_mm']})"
         )
     print(f"\n(elapsed {elapsed:.1f} s)")
 

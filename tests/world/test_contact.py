@@ -1,4 +1,5 @@
-"""Who caused a contact, where on the body, how fast: the safety benchmark's judgement."""
+"""Who caused a contact, where on the body, how fast: the safety benchmark's judgement and
+the run report's."""
 
 from __future__ import annotations
 
@@ -7,9 +8,11 @@ import math
 import numpy as np
 import pytest
 
+from coffeebot.scenario.report import Contact
 from coffeebot.sim.world import RobotSpec, Surfaces
-from coffeebot.sim.world.contact import body_region, contact_normal, judge_contact
+from coffeebot.sim.world.contact import MOVING_MM_S, body_region, contact_normal, judge_contact
 from coffeebot.sim.world.robot import BodyState
+from coffeebot.sim.world.world import Collision
 
 ROBOT = RobotSpec()  # 610 x 510 mm, driven axle 150 mm ahead of the centre
 FRONT_X = ROBOT.length_mm / 2
@@ -112,3 +115,14 @@ def test_a_touched_wall_faces_away_from_the_body() -> None:
 )
 def test_body_regions(x: float, y: float, region: str) -> None:
     assert body_region(x, y, ROBOT)[0] == region
+
+
+def test_a_report_counts_a_corner_struck_turning_on_the_spot_as_moving() -> None:
+    """A robot turning on the spot at 22 deg/s strikes the wall with its rear corner while
+    its centre moves at under 1 mm/s: the run's report says how fast the corner came, which
+    is what the delivery benchmark counts a contact "with the robot moving" by."""
+    turning = BodyState(24998.2, -537.0, 2.934, speed_mm_s=0.6, yaw_rate_rad_s=-0.385)
+    struck = Collision(2.33, 2, "hallway right wall", 25243.2, -850.0, 0.6, turning)
+    contact = Contact.of(struck, ROBOT)
+    assert contact.speed_mm_s < MOVING_MM_S
+    assert contact.towards_mm_s > MOVING_MM_S

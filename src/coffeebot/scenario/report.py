@@ -12,6 +12,8 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from coffeebot.sim.faults import FaultRecord
 from coffeebot.sim.simulation import Simulation
+from coffeebot.sim.world.contact import judge_contact
+from coffeebot.sim.world.robot import RobotSpec
 from coffeebot.sim.world.world import Collision
 
 
@@ -40,16 +42,24 @@ class Contact(_Report):
     t: float
     with_: str = Field(alias="with")
     speed_mm_s: float
+    """The body's signed forward speed."""
+    towards_mm_s: float
+    """The touched point of the body moving towards what it touched: a robot turning on the
+    spot strikes with a corner while its centre barely moves."""
     floor: int
     x_mm: int
     y_mm: int
 
     @classmethod
-    def of(cls, c: Collision) -> Contact:
+    def of(cls, c: Collision, robot: RobotSpec) -> Contact:
+        towards = c.speed_mm_s
+        if c.body is not None:
+            towards = judge_contact(c.element, (c.x_mm, c.y_mm), c.body, robot).robot_towards_mm_s
         return cls(
             t=round(c.t_s, 3),
             with_=c.element,
             speed_mm_s=round(c.speed_mm_s, 1),
+            towards_mm_s=round(towards, 1),
             floor=c.floor,
             x_mm=round(c.x_mm),
             y_mm=round(c.y_mm),
@@ -121,7 +131,7 @@ def world_facts(
     and the faults it injected."""
     with sim.lock:
         robot = sim.robot
-        contacts = [Contact.of(c) for c in robot.collisions]
+        contacts = [Contact.of(c, robot.spec) for c in robot.collisions]
         pose = robot.pose
         final = FinalPose(
             floor=robot.floor_level,
