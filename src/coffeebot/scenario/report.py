@@ -52,7 +52,7 @@ class Contact(_Report):
 
     @classmethod
     def of(cls, c: Collision, robot: RobotSpec) -> Contact:
-        towards = c.speed_mm_s
+        towards = c.speed_mm_s  # without the body's state, the centre's
         if c.body is not None:
             towards = judge_contact(c.element, (c.x_mm, c.y_mm), c.body, robot).robot_towards_mm_s
         return cls(
