@@ -84,7 +84,7 @@ class Building:
             floor=floor.level,
             x_mm=x,
             y_mm=y,
-            heading_deg=self.planner.travel_deg(floor, direction),
+            heading_deg=floor.travel_deg(direction),
         )
 
     def entry_s(self, room: str) -> float:

@@ -453,7 +453,7 @@ def test_a_fleet_robot_beside_the_elevator_waits_for_it_in_its_own_lane() -> Non
     steps = FLEET_ROBOT.route(3, door.at_mm, FLEET_ROBOT.base).steps
     ask = steps.index(Lease("holding_point", True))
     along, hold, square = steps[ask - 3 : ask]
-    travel = FLEET_ROBOT.travel_deg(floor, 1.0)
+    travel = floor.travel_deg(1.0)
     assert isinstance(along, Move) and along.instruction.action == "turn"
     assert along.instruction.heading_deg == travel
     assert isinstance(hold, Move) and hold.instruction.action == "follow_lane"
@@ -603,7 +603,7 @@ def test_a_fleet_robot_waits_for_the_tea_room_beside_the_lane_of_the_one_coming_
         if start == "213":
             (square,) = squared
             assert square.detail == "square to the lane"
-            assert square.heading_deg == FLEET_ROBOT.travel_deg(floor, 1.0)
+            assert square.heading_deg == floor.travel_deg(1.0)
         else:
             assert squared == []
         passing = right_lane_mm(

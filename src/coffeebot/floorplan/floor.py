@@ -168,6 +168,11 @@ class Floor(StrictModel):
         """(s, d) in :attr:`hallway`'s frame to a floor-frame point."""
         return self.hallway.from_local(s_mm, d_mm)
 
+    def travel_deg(self, direction: float) -> float:
+        """The heading of travel along :attr:`hallway`: towards increasing s for a positive
+        ``direction``, the other way otherwise."""
+        return self.hallway.heading_deg + (0.0 if direction > 0 else 180.0)
+
     def behind_door(self, door: Door, depth_mm: float) -> tuple[float, float]:
         """The floor-frame point ``depth_mm`` behind its hallway's wall line, through the
         middle of ``door`` (the recess's leaf at ``door.recess_mm``; inside the room beyond)."""

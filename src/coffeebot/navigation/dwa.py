@@ -133,7 +133,7 @@ class DynamicWindow:
         ends = [floor.to_hallway(x, y) for x, y in zip(end_x, end_y, strict=True)]
         s_end = np.array([e[0] for e in ends])
         d_end = np.array([e[1] for e in ends])
-        travel = math.radians(floor.hallway.heading_deg + (0.0 if direction > 0 else 180.0))
+        travel = math.radians(floor.travel_deg(direction))
         heading_error = np.abs(np.angle(np.exp(1j * (theta[:, -1] - travel))))
         reach = max(max_speed_mm_s * self.cfg.dwa_horizon_s, 1.0)
         progress = (s_end - s0) * direction / reach

@@ -470,7 +470,7 @@ class MotionController:
         lane = self._through_frames(
             floor, s, direction, self._lane(ins, floor, s, d, direction, remaining, now)
         )
-        travel = floor.hallway.heading_deg + (0.0 if direction > 0 else 180.0)
+        travel = floor.travel_deg(direction)
         if ins.stop and remaining <= self.profile.stop_band_mm:
             detail = (
                 "at the target"
@@ -656,7 +656,7 @@ class MotionController:
         """Turn on the spot towards the detour lane, the furthest of ``DETOUR_TURNS_DEG`` the
         costmap allows; None if no turn further out than the heading is free."""
         side = math.copysign(1.0, (lane - floor.to_hallway(pose.x_mm, pose.y_mm)[1]) * direction)
-        travel = floor.hallway.heading_deg + (0.0 if direction > 0 else 180.0)
+        travel = floor.travel_deg(direction)
         for angle in DETOUR_TURNS_DEG:
             aim = travel + side * angle
             further_out = wrap_deg(aim - pose.heading_deg) * side
@@ -684,7 +684,7 @@ class MotionController:
         into it, the front sensors see the wall ahead (a door's jamb held a robot going
         round a mail cart for 75 s): no turn further out was free, and along the hallway
         they look past it."""
-        travel = floor.hallway.heading_deg + (0.0 if direction > 0 else 180.0)
+        travel = floor.travel_deg(direction)
         off = abs(wrap_deg(travel - pose.heading_deg)) > self.cfg.heading_tolerance_deg
         if not off or not self._turn_is_free(pose, travel, now):
             return None

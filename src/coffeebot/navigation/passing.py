@@ -50,7 +50,7 @@ def oncoming(
     traffic message is, added to each robot's own age; ``standing``: whether one standing
     counts."""
     half_width = floor.hallway.width_mm / 2
-    travel = floor.hallway.heading_deg + (0.0 if direction > 0 else 180.0)
+    travel = floor.travel_deg(direction)
     for other in others:
         if other.floor != floor.level or other.age_s + age_s > MAX_AGE_S:
             continue

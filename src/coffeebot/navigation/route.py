@@ -202,10 +202,6 @@ class RoutePlanner:
         """Heading that looks from the hallway through ``door``."""
         return floor.hallway.heading_deg + (90.0 if door.side == "left" else -90.0)
 
-    @staticmethod
-    def travel_deg(floor: Floor, direction: float) -> float:
-        return floor.hallway.heading_deg + (0.0 if direction > 0 else 180.0)
-
     def turn_point_mm(self, door: Door, direction: float) -> float:
         """Where to stop, arriving towards ``direction``, so that a quarter turn towards
         ``door`` leaves the body's centre on the door's axis."""
@@ -331,9 +327,7 @@ class RoutePlanner:
                 # from facing across sets off 45 degrees askew, and with the passing lane
                 # 150 mm from the wall (a robot coming) it swung to 43 mm of the wall, where
                 # the side sensor held it for good.
-                steps.append(
-                    self._turn(floor, self.travel_deg(floor, direction), "along the hallway")
-                )
+                steps.append(self._turn(floor, floor.travel_deg(direction), "along the hallway"))
             if from_base and not to_car_near:
                 steps.append(spot_given_back)
             if crossing_out:
@@ -414,10 +408,10 @@ class RoutePlanner:
         route = hops(whole, floor.hallway.id, s, whole.hallway_of(door).id, to_s)
         for index, hop in enumerate(route):
             direction = 1.0 if hop.s_mm >= s else -1.0
-            here = self.travel_deg(floor, direction)
+            here = floor.travel_deg(direction)
             following = whole.view(hop.next_hallway)
             aim = route[index + 1].s_mm if index + 1 < len(route) else to_s
-            along = self.travel_deg(following, 1.0 if aim >= hop.next_s_mm else -1.0)
+            along = following.travel_deg(1.0 if aim >= hop.next_s_mm else -1.0)
             detail = f"to hallway {hop.next_hallway}"
             straight_on = abs(math.remainder(along - here, 360.0)) < 1.0
             keep_right = hop.s_mm - direction * self.nav.pull_over_mm
@@ -561,7 +555,7 @@ class RoutePlanner:
             # centre twice ``pivot_mm`` on.
             direction = 1.0 if holding >= s else -1.0
             wait = self._drive_to(floor, floor.from_hallway(holding, 0.0), "to the holding point")
-            back = self._turn(floor, self.travel_deg(floor, -direction), "facing back")
+            back = self._turn(floor, floor.travel_deg(-direction), "facing back")
             return [wait, *given_back, back], holding + direction * 2 * self.pivot_mm
         direction = 1.0 if goal.door.at_mm >= s else -1.0
         clear_at = s + direction * (self._elevator_hold_mm + 2 * self.body_length_mm)
@@ -631,7 +625,7 @@ class RoutePlanner:
         wait_at = turn_at - direction * self.nav.hold_short_mm
         if (wait_at - s) * direction <= 0:
             return []  # there already: it waits where it stands
-        along = self.travel_deg(floor, direction)
+        along = floor.travel_deg(direction)
         return [
             self._turn(floor, along, "along the hallway"),
             self._lane(floor, wait_at, waiting_lane, detail=detail),
@@ -716,7 +710,7 @@ class RoutePlanner:
         if not (goal.inside and self._across_from(there, goal.door, door_there.at_mm)):
             aim = self._aim_mm(there, door_there.at_mm, goal.door)
             direction = 1.0 if aim >= door_there.at_mm else -1.0
-            steps.append(self._turn(there, self.travel_deg(there, direction), "into the lane"))
+            steps.append(self._turn(there, there.travel_deg(direction), "into the lane"))
         return steps
 
     def _across_from(self, floor: Floor, door: Door, s: float) -> bool:
