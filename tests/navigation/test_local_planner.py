@@ -134,6 +134,15 @@ def test_too_close_to_a_wall_the_window_steers_away_instead_of_giving_up() -> No
     assert choice.speed_mm_s > 0 and choice.yaw_rate_dps > 0  # forward, turning to the left
 
 
+def test_placed_past_the_wall_the_window_still_steers_away() -> None:
+    """The estimate puts the body's side 20 mm past the wall (a corner past a wall is a
+    negative gap): an arc that goes no further past it still counts as getting out, or the
+    robot could never move again."""
+    choice = choice_beside_the_wall(gap_mm=-20.0, towards_deg=0.0, speed=100.0, lane_mm=0.0)
+    assert choice is not None
+    assert choice.speed_mm_s > 0 and choice.yaw_rate_dps > 0
+
+
 @pytest.mark.parametrize(
     ("gap", "speed"), [(109.0, 0.0), (100.0, 0.0), (100.0, 100.0), (95.0, 50.0)]
 )
