@@ -22,7 +22,6 @@ from coffeebot.messages import (
 )
 from coffeebot.modules.motion import MotionModule
 from coffeebot.navigation.control import wheel_speeds
-from coffeebot.navigation.detour import Detour, Phase
 from coffeebot.navigation.route import RoutePlanner
 from coffeebot.perception.collision import CollisionMonitor
 from coffeebot.perception.walls import explainer
@@ -116,11 +115,8 @@ def drive(
     instruction: MoveInstruction,
     max_time_s: float,
     collision: CollisionConfig = CONFIG.collision,
-    going_round_mm: float | None = None,
 ) -> Run:
-    """Run one instruction until motion reports done (or time runs out); with
-    ``going_round_mm``, from the second period on as if already going round an obstacle
-    on that detour lane."""
+    """Run one instruction until motion reports done (or time runs out)."""
     module = MotionModule(CONFIG, PLAN)
     monitor = CollisionMonitor(
         CONFIG.tof.sensors, collision, max_speed_mm_s=CONFIG.motor.max_speed_mm_s
@@ -129,8 +125,6 @@ def drive(
     seq = 0
     while world.t_s < max_time_s:
         seq += 1
-        if seq == 2 and going_round_mm is not None:
-            module.controller.detour.detour = Detour(Phase.GOING_ROUND, going_round_mm)
         scan = to_scan(world)
         pose = true_pose(world.robot)
         run.path.append((pose.x_mm, pose.y_mm, pose.heading_deg))

@@ -115,29 +115,6 @@ def test_turning_back_from_beside_the_far_wall_keeps_the_rear_off_it() -> None:
     assert run.done
 
 
-def test_held_going_round_beside_the_far_wall_turns_back_along_the_hallway() -> None:
-    """Going west round the same cart on a detour lane beside the far wall, the robot
-    stands heading 7 degrees into it and a door's jamb ahead holds it: no turn further out
-    is free, so it turns back along the hallway, where its sensors look past the jamb, and
-    goes on (it stood "no way past" for 75 s in a benchmark delivery)."""
-    west = FLOOR.hallway.heading_deg + 180.0
-    cx, cy = FLOOR.from_hallway(24520.0, 580.0)
-    cart = ObstacleSpec(id="cart", kind="mail_cart", floor=2, x_mm=cx, y_mm=cy, heading_deg=west)
-    x, y = FLOOR.from_hallway(24992.0, -471.0)
-    world = World(
-        PLAN,
-        RobotSpec.from_config(CONFIG),
-        floor=2,
-        pose=Pose(x, y, west + 7.0),
-        obstacles=[cart],
-        seed=3,
-    )
-    westward = lane(20000).model_copy(update={"lane_mm": PLANNER.lane_mm(FLOOR, -1.0)})
-    run = drive(world, westward, max_time_s=60, going_round_mm=-474.0)
-    assert not world.robot.collisions
-    assert run.done
-
-
 def test_regains_the_lane_without_weaving() -> None:
     """Started 200 mm off the lane, the robot converges on it and does not swing past it by
     more than pose noise would: the lateral loop is well damped."""

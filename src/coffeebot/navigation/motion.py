@@ -621,10 +621,8 @@ class MotionController:
         cap = min(target, self.cfg.approach_speed_mm_s, limit)
         if limit <= 0.0:
             # Held by something ahead (only turning allowed): arcs are not on offer, and the
-            # window would swing back towards the lane, into it. Turn out instead; already
-            # as far out as the walls let it turn, turn back along the hallway.
+            # window would swing back towards the lane, into it. Turn out instead.
             turn = self._turn_out(ins, floor, pose, lane, direction, now, dt, limit, remaining)
-            turn = turn or self._turn_along(ins, floor, pose, direction, now, dt, limit, remaining)
             return turn or self._blocked(ins, now, dt, limit, remaining)
         shift = abs(lane - floor.to_hallway(pose.x_mm, pose.y_mm)[1])
         if self.speed < self.cfg.creep_speed_mm_s and shift > self.footprint.width_mm / 2:
@@ -667,31 +665,6 @@ class MotionController:
                 rate = self._turn_rate(pose.heading_deg, aim)
                 return self._command(0.0, rate, dt, status, limit)
         return None
-
-    def _turn_along(
-        self,
-        ins: MoveInstruction,
-        floor: Floor,
-        pose: PoseEstimate,
-        direction: float,
-        now: float,
-        dt: float,
-        limit: float,
-        remaining: float,
-    ) -> Command | None:
-        """Turn on the spot to the direction of travel, if the heading is off it and the
-        costmap allows; None otherwise. Going round beside a wall, heading a few degrees
-        into it, the front sensors see the wall ahead (a door's jamb held a robot going
-        round a mail cart for 75 s): no turn further out was free, and along the hallway
-        they look past it."""
-        travel = floor.travel_deg(direction)
-        off = abs(wrap_deg(travel - pose.heading_deg)) > self.cfg.heading_tolerance_deg
-        if not off or not self._turn_is_free(pose, travel, now):
-            return None
-        status = self._status(
-            ins.id, MotionState.AVOIDING, now, remaining, "turning along the hallway"
-        )
-        return self._command(0.0, self._turn_rate(pose.heading_deg, travel), dt, status, limit)
 
     def _blocked(
         self,
