@@ -91,7 +91,7 @@ def test_goes_around_a_mail_cart_seen_only_by_its_corner_bars() -> None:
     assert_went_round(world, run, stop_s=21000)
 
 
-def test_turning_back_from_beside_the_far_wall_keeps_the_rear_off_it() -> None:
+def test_turning_towards_the_lane_beside_the_far_wall_keeps_the_rear_off_it() -> None:
     """Going west round a mail cart in its lane, the robot stands beside the far wall
     heading 10 degrees into it. The turn out towards its lane, about the front axle, swings
     the rear corner into that wall: checked every 7.5 degrees, the corner landed past the
